@@ -1,0 +1,36 @@
+# sparseloop_add_module(NAME <m> SOURCES <...> [PUBLIC_DEPS <...>] [PRIVATE_DEPS <...>])
+# Creates the static library sparseloop_<m> (alias sparseloop::<m>), exported and installed,
+# and records it in the global property SPARSELOOP_MODULE_TARGETS_PROP for the umbrella target.
+function(sparseloop_add_module)
+  cmake_parse_arguments(ARG "" "NAME" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  set(target sparseloop_${ARG_NAME})
+  add_library(${target} STATIC ${ARG_SOURCES})
+  add_library(sparseloop::${ARG_NAME} ALIAS ${target})
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${ARG_NAME})
+  target_include_directories(${target} PUBLIC
+    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
+    PRIVATE ${PROJECT_SOURCE_DIR}/src)
+  target_compile_features(${target} PUBLIC cxx_std_20)
+  target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  install(TARGETS ${target} EXPORT sparseloopTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  set_property(GLOBAL APPEND PROPERTY SPARSELOOP_MODULE_TARGETS_PROP ${target})
+endfunction()
+
+# sparseloop_add_test(NAME <t> SOURCES <...> LIBS <...> [LABELS <...>])
+# A GoogleTest binary; each TEST becomes a ctest test (discovered before the test runs, so the
+# build never executes test code). The test sees SPARSELOOP_DATA_DIR and SPARSELOOP_SOURCE_DIR.
+function(sparseloop_add_test)
+  cmake_parse_arguments(ARG "" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${ARG_NAME} ${ARG_SOURCES})
+  target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LIBS} sparseloop_test_main)
+  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests ${PROJECT_SOURCE_DIR}/src)
+  if(NOT ARG_LABELS)
+    set(ARG_LABELS unit)
+  endif()
+  gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60
+    PROPERTIES LABELS "${ARG_LABELS}"
+               ENVIRONMENT "SPARSELOOP_TEST_TMP=${CMAKE_BINARY_DIR}/test_tmp")
+endfunction()

@@ -1,0 +1,64 @@
+#include "sparseloop/core/camera.h"
+
+#include <cmath>
+
+#include "sparseloop/core/check.h"
+
+namespace sparseloop {
+
+Eigen::Matrix3d CameraIntrinsics::K() const {
+  Eigen::Matrix3d k;
+  k << fx, 0, cx, 0, fy, cy, 0, 0, 1;
+  return k;
+}
+
+void CameraIntrinsics::Check() const {
+  SL_CHECK_MSG(std::isfinite(fx) && fx > 0, "intrinsics: fx must be positive and finite, got {}",
+               fx);
+  SL_CHECK_MSG(std::isfinite(fy) && fy > 0, "intrinsics: fy must be positive and finite, got {}",
+               fy);
+  SL_CHECK_MSG(std::isfinite(cx) && std::isfinite(cy), "intrinsics: principal point not finite");
+  SL_CHECK_MSG(width >= 0 && height >= 0, "intrinsics: negative image size {}x{}", width, height);
+  if (width > 0 && height > 0) {
+    SL_CHECK_MSG(cx > 0 && cx < width && cy > 0 && cy < height,
+                 "intrinsics: principal point ({}, {}) outside the {}x{} image", cx, cy, width,
+                 height);
+  }
+  switch (distortion_model) {
+    case DistortionModel::kNone:
+      SL_CHECK_MSG(distortion.empty(), "intrinsics: model none takes no coefficients, got {}",
+                   distortion.size());
+      break;
+    case DistortionModel::kRadialTangential:
+      SL_CHECK_MSG(distortion.size() == 4 || distortion.size() == 5,
+                   "intrinsics: radtan takes 4 or 5 coefficients, got {}", distortion.size());
+      break;
+    case DistortionModel::kEquidistant:
+      SL_CHECK_MSG(distortion.size() == 4, "intrinsics: equidistant takes 4 coefficients, got {}",
+                   distortion.size());
+      break;
+  }
+  for (double d : distortion) SL_CHECK_MSG(std::isfinite(d), "intrinsics: distortion not finite");
+}
+
+Eigen::Vector2d CameraIntrinsics::Unproject(const Eigen::Vector2d& pixel) const {
+  return {(pixel.x() - cx) / fx, (pixel.y() - cy) / fy};
+}
+
+Eigen::Vector2d CameraIntrinsics::Project(const Eigen::Vector3d& p_in_cam) const {
+  return {fx * p_in_cam.x() / p_in_cam.z() + cx, fy * p_in_cam.y() / p_in_cam.z() + cy};
+}
+
+std::string ToString(DistortionModel model) {
+  switch (model) {
+    case DistortionModel::kNone:
+      return "none";
+    case DistortionModel::kRadialTangential:
+      return "radtan";
+    case DistortionModel::kEquidistant:
+      return "equidistant";
+  }
+  return "unknown";
+}
+
+}  // namespace sparseloop
