@@ -1,0 +1,109 @@
+#pragma once
+// Persistent keyframe map in SQLite (WAL mode). Survives power cuts: every committed keyframe is
+// readable after a kill -9 at any moment. Holds several sessions so that a later run can close
+// loops against, and relocalise in, an earlier one.
+//
+// Schema (version kSchemaVersion, checked on open; application_id identifies our files):
+//   sessions(id INTEGER PRIMARY KEY, created_unix REAL, label TEXT)
+//   keyframes(session INTEGER, id INTEGER, timestamp REAL, pose BLOB(8 doubles: qx qy qz qw tx ty tz s),
+//             num_features INTEGER, descriptors BLOB, keypoints BLOB, depths BLOB,
+//             PRIMARY KEY(session, id))
+//   loops(session INTEGER, query INTEGER, match_session INTEGER, match INTEGER, inliers INTEGER,
+//         score REAL, relative BLOB(8 doubles), accepted INTEGER)
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/core/sim3.h"
+
+struct sqlite3;
+
+namespace sparseloop {
+
+// Raised for a file that is not a sparseloop map, is corrupt, or has an unsupported schema.
+class MapDatabaseError : public Error {
+ public:
+  using Error::Error;
+};
+
+// What the map stores per keyframe: exactly what matching needs (see features/keyframe_record.h),
+// as plain arrays so that this layer depends on core only.
+struct StoredKeyframe {
+  int64_t session = 0;
+  int64_t id = 0;
+  double timestamp = 0.0;
+  Sim3d raw_world_from_cam;
+  int num_features = 0;
+  std::vector<uint8_t> descriptors;  // num_features x 32 bytes (ORB)
+  std::vector<float> keypoints;      // num_features x 2 (x, y in pixels)
+  std::vector<float> depths;         // empty or num_features (raw vSLAM scale; <= 0 = unknown)
+};
+
+struct StoredLoop {
+  int64_t session = 0;
+  int64_t query = 0;
+  int64_t match_session = 0;
+  int64_t match = 0;
+  int inliers = 0;
+  double score = 0.0;
+  Sim3d match_from_query;
+  bool accepted = true;
+};
+
+struct MapDatabaseOptions {
+  // Commit every N keyframes (1 = every keyframe is durable once Put returns). Larger batches are
+  // faster; at most N-1 keyframes are lost on a power cut.
+  int commit_every = 1;
+  // synchronous=NORMAL in WAL mode is durable against process crashes (kill -9) and keeps the file
+  // consistent across power loss; FULL additionally guarantees the last commit survives power loss.
+  bool full_sync = false;
+  void Check() const;
+};
+
+class MapDatabase {
+ public:
+  static constexpr int kSchemaVersion = 1;
+  static constexpr int32_t kApplicationId = 0x534C4D50;  // "SLMP"
+
+  // Opens or creates. Throws MapDatabaseError naming the file for a foreign, corrupt or
+  // newer-schema file.
+  static std::unique_ptr<MapDatabase> Open(const std::filesystem::path& path,
+                                           const MapDatabaseOptions& options = {});
+  ~MapDatabase();
+  MapDatabase(const MapDatabase&) = delete;
+  MapDatabase& operator=(const MapDatabase&) = delete;
+
+  // Starts a new session and returns its id (1, 2, ...).
+  int64_t BeginSession(const std::string& label);
+  std::vector<int64_t> Sessions() const;
+
+  // Stores a keyframe; throws std::invalid_argument on a duplicate (session, id) or an
+  // inconsistent record (sizes that do not match num_features), leaving the map unchanged.
+  void PutKeyframe(const StoredKeyframe& keyframe);
+  void PutLoop(const StoredLoop& loop);
+  // Commits pending writes now (also done by the destructor).
+  void Flush();
+
+  std::vector<StoredKeyframe> LoadKeyframes(int64_t session) const;  // ordered by id
+  std::vector<StoredKeyframe> LoadAllKeyframes() const;               // by session, id
+  std::vector<StoredLoop> LoadLoops() const;
+  int64_t CountKeyframes() const;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  MapDatabase(std::filesystem::path path, MapDatabaseOptions options, sqlite3* db);
+  void Exec(const char* sql) const;
+  void MaybeCommit();
+  void BeginIfNeeded();
+
+  std::filesystem::path path_;
+  MapDatabaseOptions options_;
+  sqlite3* db_ = nullptr;
+  bool in_transaction_ = false;
+  int pending_ = 0;
+};
+
+}  // namespace sparseloop

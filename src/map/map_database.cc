@@ -1,0 +1,329 @@
+#include "sparseloop/map/map_database.h"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <cstring>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+
+namespace sparseloop {
+namespace {
+
+// RAII prepared statement.
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql, const std::filesystem::path& path) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) {
+      throw MapDatabaseError(fmt::format("{}: SQLite error preparing '{}': {}", path.string(), sql,
+                                         sqlite3_errmsg(db)));
+    }
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+  sqlite3_stmt* get() const { return stmt_; }
+  void BindBlob(int index, const void* data, size_t bytes) {
+    sqlite3_bind_blob(stmt_, index, bytes ? data : "", static_cast<int>(bytes), SQLITE_TRANSIENT);
+  }
+  int Step() { return sqlite3_step(stmt_); }
+
+ private:
+  sqlite3* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+std::vector<double> SimToBlob(const Sim3d& s) {
+  const Vector8d v = s.ToVector();
+  return {v.data(), v.data() + 8};
+}
+
+Sim3d SimFromBlob(const void* data, int bytes, const std::filesystem::path& path) {
+  if (bytes != 8 * static_cast<int>(sizeof(double))) {
+    throw MapDatabaseError(fmt::format("{}: corrupt pose blob of {} bytes (expected 64)",
+                                       path.string(), bytes));
+  }
+  Vector8d v;
+  std::memcpy(v.data(), data, 64);
+  if (!v.allFinite() || !(v[7] > 0.0) || std::abs(v.head<4>().norm() - 1.0) > 1e-6) {
+    throw MapDatabaseError(fmt::format("{}: corrupt pose (non-finite, zero scale or non-unit "
+                                       "quaternion)",
+                                       path.string()));
+  }
+  return Sim3d::FromVector(v);
+}
+
+template <typename T>
+std::vector<T> ColumnArray(sqlite3_stmt* stmt, int col) {
+  const int bytes = sqlite3_column_bytes(stmt, col);
+  std::vector<T> out(static_cast<size_t>(bytes) / sizeof(T));
+  if (bytes > 0) std::memcpy(out.data(), sqlite3_column_blob(stmt, col), out.size() * sizeof(T));
+  return out;
+}
+
+int QueryInt(sqlite3* db, const char* sql, const std::filesystem::path& path) {
+  Statement st(db, sql, path);
+  const int rc = st.Step();
+  if (rc != SQLITE_ROW) {
+    throw MapDatabaseError(fmt::format("{}: cannot read '{}': {}", path.string(), sql,
+                                       sqlite3_errmsg(db)));
+  }
+  return sqlite3_column_int(st.get(), 0);
+}
+
+}  // namespace
+
+void MapDatabaseOptions::Check() const {
+  SL_CHECK_MSG(commit_every >= 1, "commit_every must be >= 1, got {}", commit_every);
+}
+
+std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path,
+                                               const MapDatabaseOptions& options) {
+  options.Check();
+  sqlite3* db = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE,
+                                 nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    throw MapDatabaseError(fmt::format("{}: cannot open map database: {}", path.string(), msg));
+  }
+  // The constructor takes ownership of db; from here on errors close it through the destructor.
+  std::unique_ptr<MapDatabase> map(new MapDatabase(path, options, db));
+  sqlite3_busy_timeout(db, 5000);
+    // Reading the header fails with SQLITE_NOTADB for a file that is not SQLite at all.
+    const int app_id = QueryInt(db, "PRAGMA application_id", path);
+    const int version = QueryInt(db, "PRAGMA user_version", path);
+    const int tables = QueryInt(db, "SELECT count(*) FROM sqlite_master", path);
+    if (tables == 0 && app_id == 0) {
+      map->Exec("PRAGMA journal_mode=WAL");
+      map->Exec(fmt::format("PRAGMA application_id={}", kApplicationId).c_str());
+      map->Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion).c_str());
+      map->Exec(
+          "CREATE TABLE sessions(id INTEGER PRIMARY KEY, created_unix REAL NOT NULL, label TEXT);"
+          "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
+          " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
+          " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
+          " depths BLOB NOT NULL, PRIMARY KEY(session, id));"
+          "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
+          " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
+          " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);");
+    } else if (app_id != kApplicationId) {
+      throw MapDatabaseError(fmt::format(
+          "{}: not a sparseloop map (SQLite application_id {:#x}, expected {:#x})", path.string(),
+          static_cast<uint32_t>(app_id), static_cast<uint32_t>(kApplicationId)));
+    } else if (version > kSchemaVersion) {
+      throw MapDatabaseError(fmt::format(
+          "{}: map schema version {} is newer than this sparseloop supports ({}); upgrade "
+          "sparseloop",
+          path.string(), version, kSchemaVersion));
+    } else if (version < kSchemaVersion) {
+      // No older schema has been released yet; a migration step per version goes here.
+      throw MapDatabaseError(fmt::format("{}: map schema version {} has no migration to {}",
+                                         path.string(), version, kSchemaVersion));
+    } else {
+      map->Exec("PRAGMA journal_mode=WAL");
+      const int ok = QueryInt(db, "SELECT count(*) FROM pragma_quick_check WHERE quick_check='ok'",
+                              path);
+      if (ok != 1) throw MapDatabaseError(path.string() + ": map database failed quick_check");
+    }
+    map->Exec(options.full_sync ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
+  return map;
+}
+
+MapDatabase::MapDatabase(std::filesystem::path path, MapDatabaseOptions options, sqlite3* db)
+    : path_(std::move(path)), options_(options), db_(db) {}
+
+MapDatabase::~MapDatabase() {
+  if (db_ == nullptr) return;
+  if (in_transaction_) {
+    if (sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) != SQLITE_OK) {
+      Logger().error("{}: final commit failed: {}", path_.string(), sqlite3_errmsg(db_));
+    }
+  }
+  sqlite3_close(db_);
+}
+
+void MapDatabase::Exec(const char* sql) const {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw MapDatabaseError(fmt::format("{}: SQLite error: {}", path_.string(), msg));
+  }
+}
+
+void MapDatabase::BeginIfNeeded() {
+  if (!in_transaction_) {
+    Exec("BEGIN IMMEDIATE");
+    in_transaction_ = true;
+  }
+}
+
+void MapDatabase::MaybeCommit() {
+  if (++pending_ >= options_.commit_every) Flush();
+}
+
+void MapDatabase::Flush() {
+  if (in_transaction_) {
+    Exec("COMMIT");
+    in_transaction_ = false;
+  }
+  pending_ = 0;
+}
+
+int64_t MapDatabase::BeginSession(const std::string& label) {
+  BeginIfNeeded();
+  Statement st(db_, "INSERT INTO sessions(created_unix, label) VALUES(?, ?)", path_);
+  const double now = std::chrono::duration<double>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+  sqlite3_bind_double(st.get(), 1, now);
+  sqlite3_bind_text(st.get(), 2, label.c_str(), -1, SQLITE_TRANSIENT);
+  if (st.Step() != SQLITE_DONE) {
+    throw MapDatabaseError(path_.string() + ": cannot add session: " + sqlite3_errmsg(db_));
+  }
+  const int64_t id = sqlite3_last_insert_rowid(db_);
+  Flush();
+  return id;
+}
+
+std::vector<int64_t> MapDatabase::Sessions() const {
+  Statement st(db_, "SELECT id FROM sessions ORDER BY id", path_);
+  std::vector<int64_t> out;
+  while (st.Step() == SQLITE_ROW) out.push_back(sqlite3_column_int64(st.get(), 0));
+  return out;
+}
+
+void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
+  SL_CHECK_MSG(kf.num_features >= 0, "keyframe {}: negative feature count", kf.id);
+  SL_CHECK_MSG(kf.descriptors.size() == static_cast<size_t>(kf.num_features) * 32,
+               "keyframe {}: {} descriptor bytes for {} features (expected 32 each)", kf.id,
+               kf.descriptors.size(), kf.num_features);
+  SL_CHECK_MSG(kf.keypoints.size() == static_cast<size_t>(kf.num_features) * 2,
+               "keyframe {}: {} keypoint floats for {} features (expected 2 each)", kf.id,
+               kf.keypoints.size(), kf.num_features);
+  SL_CHECK_MSG(kf.depths.empty() || kf.depths.size() == static_cast<size_t>(kf.num_features),
+               "keyframe {}: {} depths for {} features", kf.id, kf.depths.size(), kf.num_features);
+  SL_CHECK_MSG(std::isfinite(kf.timestamp), "keyframe {}: non-finite timestamp", kf.id);
+  BeginIfNeeded();
+  Statement st(db_,
+               "INSERT INTO keyframes(session, id, timestamp, pose, num_features, descriptors,"
+               " keypoints, depths) VALUES(?,?,?,?,?,?,?,?)",
+               path_);
+  const auto pose = SimToBlob(kf.raw_world_from_cam);
+  sqlite3_bind_int64(st.get(), 1, kf.session);
+  sqlite3_bind_int64(st.get(), 2, kf.id);
+  sqlite3_bind_double(st.get(), 3, kf.timestamp);
+  st.BindBlob(4, pose.data(), pose.size() * sizeof(double));
+  sqlite3_bind_int(st.get(), 5, kf.num_features);
+  st.BindBlob(6, kf.descriptors.data(), kf.descriptors.size());
+  st.BindBlob(7, kf.keypoints.data(), kf.keypoints.size() * sizeof(float));
+  st.BindBlob(8, kf.depths.data(), kf.depths.size() * sizeof(float));
+  const int rc = st.Step();
+  if (rc == SQLITE_CONSTRAINT) {
+    // Statement-level rollback: earlier keyframes in this transaction are kept.
+    SL_CHECK_MSG(false, "keyframe id {} already stored in session {}", kf.id, kf.session);
+  }
+  if (rc != SQLITE_DONE) {
+    throw MapDatabaseError(path_.string() + ": cannot store keyframe: " + sqlite3_errmsg(db_));
+  }
+  MaybeCommit();
+}
+
+void MapDatabase::PutLoop(const StoredLoop& loop) {
+  BeginIfNeeded();
+  Statement st(db_,
+               "INSERT INTO loops(session, query, match_session, match, inliers, score, relative,"
+               " accepted) VALUES(?,?,?,?,?,?,?,?)",
+               path_);
+  const auto rel = SimToBlob(loop.match_from_query);
+  sqlite3_bind_int64(st.get(), 1, loop.session);
+  sqlite3_bind_int64(st.get(), 2, loop.query);
+  sqlite3_bind_int64(st.get(), 3, loop.match_session);
+  sqlite3_bind_int64(st.get(), 4, loop.match);
+  sqlite3_bind_int(st.get(), 5, loop.inliers);
+  sqlite3_bind_double(st.get(), 6, loop.score);
+  st.BindBlob(7, rel.data(), rel.size() * sizeof(double));
+  sqlite3_bind_int(st.get(), 8, loop.accepted ? 1 : 0);
+  if (st.Step() != SQLITE_DONE) {
+    throw MapDatabaseError(path_.string() + ": cannot store loop: " + sqlite3_errmsg(db_));
+  }
+  MaybeCommit();
+}
+
+namespace {
+std::vector<StoredKeyframe> ReadKeyframes(sqlite3* db, Statement& st,
+                                          const std::filesystem::path& path) {
+  std::vector<StoredKeyframe> out;
+  int rc;
+  while ((rc = st.Step()) == SQLITE_ROW) {
+    sqlite3_stmt* s = st.get();
+    StoredKeyframe kf;
+    kf.session = sqlite3_column_int64(s, 0);
+    kf.id = sqlite3_column_int64(s, 1);
+    kf.timestamp = sqlite3_column_double(s, 2);
+    kf.raw_world_from_cam = SimFromBlob(sqlite3_column_blob(s, 3), sqlite3_column_bytes(s, 3), path);
+    kf.num_features = sqlite3_column_int(s, 4);
+    kf.descriptors = ColumnArray<uint8_t>(s, 5);
+    kf.keypoints = ColumnArray<float>(s, 6);
+    kf.depths = ColumnArray<float>(s, 7);
+    const size_t n = static_cast<size_t>(std::max(kf.num_features, 0));
+    if (kf.num_features < 0 || kf.descriptors.size() != n * 32 || kf.keypoints.size() != n * 2 ||
+        (!kf.depths.empty() && kf.depths.size() != n)) {
+      throw MapDatabaseError(fmt::format("{}: corrupt keyframe record (session {}, id {})",
+                                         path.string(), kf.session, kf.id));
+    }
+    out.push_back(std::move(kf));
+  }
+  if (rc != SQLITE_DONE) {
+    throw MapDatabaseError(path.string() + ": cannot read keyframes: " + sqlite3_errmsg(db));
+  }
+  return out;
+}
+constexpr const char* kSelectKeyframes =
+    "SELECT session, id, timestamp, pose, num_features, descriptors, keypoints, depths"
+    " FROM keyframes";
+}  // namespace
+
+std::vector<StoredKeyframe> MapDatabase::LoadKeyframes(int64_t session) const {
+  const std::string sql = std::string(kSelectKeyframes) + " WHERE session=? ORDER BY id";
+  Statement st(db_, sql.c_str(), path_);
+  sqlite3_bind_int64(st.get(), 1, session);
+  return ReadKeyframes(db_, st, path_);
+}
+
+std::vector<StoredKeyframe> MapDatabase::LoadAllKeyframes() const {
+  const std::string sql = std::string(kSelectKeyframes) + " ORDER BY session, id";
+  Statement st(db_, sql.c_str(), path_);
+  return ReadKeyframes(db_, st, path_);
+}
+
+std::vector<StoredLoop> MapDatabase::LoadLoops() const {
+  Statement st(db_,
+               "SELECT session, query, match_session, match, inliers, score, relative, accepted"
+               " FROM loops ORDER BY rowid",
+               path_);
+  std::vector<StoredLoop> out;
+  while (st.Step() == SQLITE_ROW) {
+    sqlite3_stmt* s = st.get();
+    StoredLoop l;
+    l.session = sqlite3_column_int64(s, 0);
+    l.query = sqlite3_column_int64(s, 1);
+    l.match_session = sqlite3_column_int64(s, 2);
+    l.match = sqlite3_column_int64(s, 3);
+    l.inliers = sqlite3_column_int(s, 4);
+    l.score = sqlite3_column_double(s, 5);
+    l.match_from_query = SimFromBlob(sqlite3_column_blob(s, 6), sqlite3_column_bytes(s, 6), path_);
+    l.accepted = sqlite3_column_int(s, 7) != 0;
+    out.push_back(l);
+  }
+  return out;
+}
+
+int64_t MapDatabase::CountKeyframes() const {
+  return QueryInt(db_, "SELECT count(*) FROM keyframes", path_);
+}
+
+}  // namespace sparseloop
