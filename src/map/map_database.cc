@@ -14,7 +14,7 @@ namespace {
 // RAII prepared statement.
 class Statement {
  public:
-  Statement(sqlite3* db, const char* sql, const std::filesystem::path& path) : db_(db) {
+  Statement(sqlite3* db, const char* sql, const std::filesystem::path& path) {
     if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) {
       throw MapDatabaseError(fmt::format("{}: SQLite error preparing '{}': {}", path.string(), sql,
                                          sqlite3_errmsg(db)));
@@ -30,7 +30,6 @@ class Statement {
   int Step() { return sqlite3_step(stmt_); }
 
  private:
-  sqlite3* db_;
   sqlite3_stmt* stmt_ = nullptr;
 };
 
