@@ -40,15 +40,16 @@ std::vector<double> SimToBlob(const Sim3d& s) {
 
 Sim3d SimFromBlob(const void* data, int bytes, const std::filesystem::path& path) {
   if (bytes != 8 * static_cast<int>(sizeof(double))) {
-    throw MapDatabaseError(fmt::format("{}: corrupt pose blob of {} bytes (expected 64)",
-                                       path.string(), bytes));
+    throw MapDatabaseError(
+        fmt::format("{}: corrupt pose blob of {} bytes (expected 64)", path.string(), bytes));
   }
   Vector8d v;
   std::memcpy(v.data(), data, 64);
   if (!v.allFinite() || !(v[7] > 0.0) || std::abs(v.head<4>().norm() - 1.0) > 1e-6) {
-    throw MapDatabaseError(fmt::format("{}: corrupt pose (non-finite, zero scale or non-unit "
-                                       "quaternion)",
-                                       path.string()));
+    throw MapDatabaseError(
+        fmt::format("{}: corrupt pose (non-finite, zero scale or non-unit "
+                    "quaternion)",
+                    path.string()));
   }
   return Sim3d::FromVector(v);
 }
@@ -65,8 +66,8 @@ int QueryInt(sqlite3* db, const char* sql, const std::filesystem::path& path) {
   Statement st(db, sql, path);
   const int rc = st.Step();
   if (rc != SQLITE_ROW) {
-    throw MapDatabaseError(fmt::format("{}: cannot read '{}': {}", path.string(), sql,
-                                       sqlite3_errmsg(db)));
+    throw MapDatabaseError(
+        fmt::format("{}: cannot read '{}': {}", path.string(), sql, sqlite3_errmsg(db)));
   }
   return sqlite3_column_int(st.get(), 0);
 }
@@ -81,8 +82,8 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
                                                const MapDatabaseOptions& options) {
   options.Check();
   sqlite3* db = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE,
-                                 nullptr);
+  const int rc =
+      sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   if (rc != SQLITE_OK) {
     const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
     sqlite3_close(db);
@@ -91,43 +92,43 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
   // The constructor takes ownership of db; from here on errors close it through the destructor.
   std::unique_ptr<MapDatabase> map(new MapDatabase(path, options, db));
   sqlite3_busy_timeout(db, 5000);
-    // Reading the header fails with SQLITE_NOTADB for a file that is not SQLite at all.
-    const int app_id = QueryInt(db, "PRAGMA application_id", path);
-    const int version = QueryInt(db, "PRAGMA user_version", path);
-    const int tables = QueryInt(db, "SELECT count(*) FROM sqlite_master", path);
-    if (tables == 0 && app_id == 0) {
-      map->Exec("PRAGMA journal_mode=WAL");
-      map->Exec(fmt::format("PRAGMA application_id={}", kApplicationId).c_str());
-      map->Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion).c_str());
-      map->Exec(
-          "CREATE TABLE sessions(id INTEGER PRIMARY KEY, created_unix REAL NOT NULL, label TEXT);"
-          "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
-          " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
-          " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
-          " depths BLOB NOT NULL, PRIMARY KEY(session, id));"
-          "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
-          " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
-          " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);");
-    } else if (app_id != kApplicationId) {
-      throw MapDatabaseError(fmt::format(
-          "{}: not a sparseloop map (SQLite application_id {:#x}, expected {:#x})", path.string(),
-          static_cast<uint32_t>(app_id), static_cast<uint32_t>(kApplicationId)));
-    } else if (version > kSchemaVersion) {
-      throw MapDatabaseError(fmt::format(
-          "{}: map schema version {} is newer than this sparseloop supports ({}); upgrade "
-          "sparseloop",
-          path.string(), version, kSchemaVersion));
-    } else if (version < kSchemaVersion) {
-      // No older schema has been released yet; a migration step per version goes here.
-      throw MapDatabaseError(fmt::format("{}: map schema version {} has no migration to {}",
-                                         path.string(), version, kSchemaVersion));
-    } else {
-      map->Exec("PRAGMA journal_mode=WAL");
-      const int ok = QueryInt(db, "SELECT count(*) FROM pragma_quick_check WHERE quick_check='ok'",
-                              path);
-      if (ok != 1) throw MapDatabaseError(path.string() + ": map database failed quick_check");
-    }
-    map->Exec(options.full_sync ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
+  // Reading the header fails with SQLITE_NOTADB for a file that is not SQLite at all.
+  const int app_id = QueryInt(db, "PRAGMA application_id", path);
+  const int version = QueryInt(db, "PRAGMA user_version", path);
+  const int tables = QueryInt(db, "SELECT count(*) FROM sqlite_master", path);
+  if (tables == 0 && app_id == 0) {
+    map->Exec("PRAGMA journal_mode=WAL");
+    map->Exec(fmt::format("PRAGMA application_id={}", kApplicationId).c_str());
+    map->Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion).c_str());
+    map->Exec(
+        "CREATE TABLE sessions(id INTEGER PRIMARY KEY, created_unix REAL NOT NULL, label TEXT);"
+        "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
+        " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
+        " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
+        " depths BLOB NOT NULL, PRIMARY KEY(session, id));"
+        "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
+        " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
+        " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);");
+  } else if (app_id != kApplicationId) {
+    throw MapDatabaseError(fmt::format(
+        "{}: not a sparseloop map (SQLite application_id {:#x}, expected {:#x})", path.string(),
+        static_cast<uint32_t>(app_id), static_cast<uint32_t>(kApplicationId)));
+  } else if (version > kSchemaVersion) {
+    throw MapDatabaseError(fmt::format(
+        "{}: map schema version {} is newer than this sparseloop supports ({}); upgrade "
+        "sparseloop",
+        path.string(), version, kSchemaVersion));
+  } else if (version < kSchemaVersion) {
+    // No older schema has been released yet; a migration step per version goes here.
+    throw MapDatabaseError(fmt::format("{}: map schema version {} has no migration to {}",
+                                       path.string(), version, kSchemaVersion));
+  } else {
+    map->Exec("PRAGMA journal_mode=WAL");
+    const int ok =
+        QueryInt(db, "SELECT count(*) FROM pragma_quick_check WHERE quick_check='ok'", path);
+    if (ok != 1) throw MapDatabaseError(path.string() + ": map database failed quick_check");
+  }
+  map->Exec(options.full_sync ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
   return map;
 }
 
@@ -175,9 +176,8 @@ void MapDatabase::Flush() {
 int64_t MapDatabase::BeginSession(const std::string& label) {
   BeginIfNeeded();
   Statement st(db_, "INSERT INTO sessions(created_unix, label) VALUES(?, ?)", path_);
-  const double now = std::chrono::duration<double>(
-                         std::chrono::system_clock::now().time_since_epoch())
-                         .count();
+  const double now =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   sqlite3_bind_double(st.get(), 1, now);
   sqlite3_bind_text(st.get(), 2, label.c_str(), -1, SQLITE_TRANSIENT);
   if (st.Step() != SQLITE_DONE) {
@@ -263,7 +263,8 @@ std::vector<StoredKeyframe> ReadKeyframes(sqlite3* db, Statement& st,
     kf.session = sqlite3_column_int64(s, 0);
     kf.id = sqlite3_column_int64(s, 1);
     kf.timestamp = sqlite3_column_double(s, 2);
-    kf.raw_world_from_cam = SimFromBlob(sqlite3_column_blob(s, 3), sqlite3_column_bytes(s, 3), path);
+    kf.raw_world_from_cam =
+        SimFromBlob(sqlite3_column_blob(s, 3), sqlite3_column_bytes(s, 3), path);
     kf.num_features = sqlite3_column_int(s, 4);
     kf.descriptors = ColumnArray<uint8_t>(s, 5);
     kf.keypoints = ColumnArray<float>(s, 6);

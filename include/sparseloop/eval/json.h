@@ -1,0 +1,25 @@
+#pragma once
+// JSON serialisation of evaluation results (nlohmann::json). Values that are not computable are
+// null. Key names are documented in docs/METRICS.md.
+#include <nlohmann/json.hpp>
+
+#include "sparseloop/eval/loops.h"
+#include "sparseloop/eval/metrics.h"
+
+namespace sparseloop {
+
+nlohmann::json ToJson(const ErrorStatistics& stats, bool include_errors = false);
+nlohmann::json ToJson(const AlignmentResult& alignment);
+nlohmann::json ToJson(const KittiResult& kitti);
+nlohmann::json ToJson(const RpeResult& rpe);
+nlohmann::json ToJson(const LoopPrResult& loops);
+// Full evaluation. Top-level flat keys: ate_rmse_m, ate_mean_m, ate_median_m, ate_max_m,
+// rpe_trans_rmse, rpe_rot_rmse_deg, kitti_t_err_pct, kitti_r_err_deg_per_100m, plus nested
+// "alignment", "ate", "rpe", "kitti" objects. Loop keys (loop_*) are added by the caller with
+// AddLoopKeys.
+nlohmann::json ToJson(const TrajectoryEvaluation& evaluation);
+// Adds loop_precision, loop_recall, loop_recall_at_100p, loop_true_positives,
+// loop_false_positives and a nested "loops" object (or nulls when `loops` is nullptr).
+void AddLoopKeys(nlohmann::json& out, const LoopPrResult* loops);
+
+}  // namespace sparseloop

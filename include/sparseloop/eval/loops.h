@@ -1,0 +1,83 @@
+#pragma once
+// Ground-truth loops from poses, and precision / recall of a loop detector.
+//
+// Definitions (also in docs/METRICS.md):
+//  GT loops (DeriveGtLoops): for pose indices i > j of the gt trajectory, (query = frame_i,
+//    match = frame_j) is a loop when |p_i - p_j| < distance, frame_i - frame_j >= min_gap and,
+//    when max_view_angle_deg < 180, the angle between the two camera z axes (viewing directions,
+//    R * e_z) is <= max_view_angle_deg.
+//  A pair is always handled as (later, earlier): query = max, match = min of the two ids.
+//  Detection d = (query, match, score) is CORRECT when some GT pair (d.query, m') exists with
+//    |m' - d.match| <= frame_tolerance.
+//  precision = correct detections / detections (nullopt when there are no detections).
+//  GT queries = distinct query ids of the GT pairs. A GT query is RECALLED when at least one
+//    correct detection has it as query. recall = recalled GT queries / GT queries (nullopt when
+//    there are no GT pairs).
+//  P/R curve: detections sorted by score, highest first; for every distinct score s (threshold:
+//    keep detections with score >= s) one point with the precision and recall of the kept set.
+//  recall_at_100p = the largest recall over curve points whose precision is exactly 1; 0 when
+//    no such point exists (e.g. the top-scored detection is wrong); nullopt without GT pairs.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+#include "sparseloop/core/loop_pair.h"
+#include "sparseloop/core/trajectory.h"
+
+namespace sparseloop {
+
+struct GtLoopOptions {
+  double distance = 5.0;              // metres (gt units); pairs closer than this, > 0
+  int64_t min_gap = 100;              // frames; minimum query - match frame difference, >= 1
+  double max_view_angle_deg = 180.0;  // degrees in (0, 180]; 180 disables the check
+  void Check() const;
+};
+
+// Brute force over all pairs (O(n^2) distance checks). Result sorted by (query, match).
+// Throws std::invalid_argument when max_view_angle_deg < 180 and gt.has_rotation is false.
+std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& options = {});
+
+struct Detection {
+  int64_t query = 0;   // later frame id
+  int64_t match = 0;   // earlier frame id it was matched to
+  double score = 0.0;  // higher = more confident
+};
+
+// Reads the detector's loops.csv: a header line naming comma-separated columns, which must include
+// "query", "match" and "score" (any order, other columns ignored), then one detection per line.
+// Blank lines are skipped. Throws FileError(path, line, expected, got) for a missing file, missing
+// header columns, a wrong field count or an unparsable number.
+std::vector<Detection> ReadDetections(const std::filesystem::path& path);
+
+struct LoopEvalOptions {
+  int64_t frame_tolerance = 0;  // frames; allowed |match - gt match| for a correct detection, >= 0
+  void Check() const;
+};
+
+struct LoopPrPoint {
+  double threshold = 0.0;  // score threshold (detections with score >= threshold kept)
+  size_t detections = 0;   // kept detections
+  size_t true_positives = 0;
+  double precision = 0.0;
+  double recall = 0.0;  // 0 when there are no GT queries
+};
+
+struct LoopPrResult {
+  size_t num_detections = 0;
+  size_t true_positives = 0;
+  size_t false_positives = 0;
+  size_t num_gt_pairs = 0;      // distinct GT pairs
+  size_t num_gt_queries = 0;    // distinct GT query ids
+  size_t recalled_queries = 0;  // GT queries with at least one correct detection
+  std::optional<double> precision;
+  std::optional<double> recall;
+  std::optional<double> recall_at_100p;
+  std::vector<bool> correct;       // per input detection, input order
+  std::vector<LoopPrPoint> curve;  // by decreasing threshold
+};
+
+LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
+                           const std::vector<LoopPair>& gt, const LoopEvalOptions& options = {});
+
+}  // namespace sparseloop

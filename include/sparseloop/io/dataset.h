@@ -1,0 +1,84 @@
+#pragma once
+// Image-sequence datasets: frames (image path, time, optional ground-truth pose) plus intrinsics.
+// Specs and folder layouts (documented in docs/FORMATS.md):
+//   "kitti:DIR"   DIR/image_0/NNNNNN.png, DIR/times.txt, DIR/calib.txt (P0), optional poses
+//   "tum:DIR"     DIR/rgb.txt, optional DIR/groundtruth.txt (nearest time within tum_max_dt)
+//   "euroc:DIR"   DIR/mav0/cam0/{data.csv,sensor.yaml,data/*.png}, optional
+//                 DIR/mav0/state_groundtruth_estimate0/data.csv
+//   "images:DIR"  sorted *.png/jpg/jpeg/pgm/bmp; intrinsics from options, poses optional
+// A bad spec or a missing required option throws std::invalid_argument; a missing or malformed
+// file throws FileError.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sparseloop/core/camera.h"
+#include "sparseloop/core/rigid3.h"
+#include "sparseloop/core/trajectory.h"
+
+namespace sparseloop {
+
+struct DatasetFrame {
+  int64_t index = 0;       // 0-based position in the sequence
+  double timestamp = 0.0;  // seconds (images: equal to index)
+  std::filesystem::path image_path;
+  std::optional<Rigid3d> gt_world_from_cam;  // ground-truth pose when known
+};
+
+struct Dataset {
+  std::string kind;  // "kitti", "tum", "euroc" or "images"
+  std::filesystem::path root;
+  CameraIntrinsics intrinsics;
+  std::vector<DatasetFrame> frames;
+  std::filesystem::path gt_path;  // the file the ground truth came from (empty when none)
+
+  // True when at least one frame has a ground-truth pose.
+  bool has_gt() const;
+  // The frames that have a ground-truth pose, with their timestamps and frame indices.
+  Trajectory GtTrajectory() const;
+};
+
+struct DatasetOptions {
+  // Overrides the intrinsics from the dataset (required for "images:", and for "tum:" when the
+  // folder name does not name freiburg1/2/3).
+  std::optional<CameraIntrinsics> intrinsics;
+  // Ground-truth trajectory file (any ReadTrajectory format, auto-detected); overrides the
+  // dataset's own GT. kitti/images: matched by frame index; tum/euroc: by nearest timestamp.
+  std::filesystem::path poses;
+  double tum_max_dt = 0.02;     // seconds, max |t_image - t_gt| for tum association
+  double euroc_max_dt = 0.005;  // seconds, same for euroc (GT at 200 Hz)
+  // EuRoC GT is the body (IMU) pose. True: convert to the camera with T_BS from sensor.yaml
+  // (world_from_cam = world_from_body * body_from_cam). False: keep the body pose.
+  bool euroc_gt_in_camera_frame = true;
+
+  void Check() const;
+};
+
+// spec = "<kind>:<DIR>".
+Dataset OpenDataset(const std::string& spec, const DatasetOptions& options = {});
+
+// Width and height of a PNG image from its IHDR chunk (no decoding). FileError when the file is
+// missing or is not a PNG.
+struct ImageSize {
+  int width = 0;   // pixels
+  int height = 0;  // pixels
+};
+ImageSize ReadPngSize(const std::filesystem::path& path);
+
+// The intrinsics of the TUM RGB-D Kinects (640x480), from the dataset's documentation:
+// 1 -> freiburg1, 2 -> freiburg2 (both radtan k1 k2 p1 p2 k3), 3 -> freiburg3 (no distortion).
+// Other values throw std::invalid_argument.
+CameraIntrinsics TumFreiburgIntrinsics(int freiburg);
+
+// A camera description parsed from an EuRoC/Kalibr sensor.yaml (the small YAML subset those files
+// use: "key: value", "key: [a, b, ...]" lists possibly spanning lines, and a "T_BS:" block with
+// "data: [16 numbers]").
+struct EurocCameraInfo {
+  CameraIntrinsics intrinsics;
+  std::optional<Rigid3d> body_from_cam;  // T_BS when present
+};
+EurocCameraInfo ReadEurocSensorYaml(const std::filesystem::path& path);
+
+}  // namespace sparseloop

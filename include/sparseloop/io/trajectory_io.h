@@ -1,0 +1,61 @@
+#pragma once
+// Strict readers and writers for the trajectory formats of the vSLAM ecosystem. See
+// docs/FORMATS.md for the exact layouts, the auto-detection rule and the error messages.
+//
+//  kTum        "t x y z qx qy qz qw" (seconds), '#' comments, blank lines allowed.
+//  kKitti      12 numbers per line, row-major 3x4 world_from_cam [R|t]; or 13 with a leading
+//              integer frame index (frames need not start at 0).
+//  kEuroc      EuRoC ASL CSV "timestamp[ns],px,py,pz,qw,qx,qy,qz[,extra columns...]".
+//  kPositions  "frame x y z [more columns...]": only the first 4 columns are read, the
+//              orientation is identity and Trajectory::has_rotation is false.
+//
+// Every malformed input throws sparseloop::FileError naming the file, the 1-based line and what
+// was expected (missing/empty file, wrong column count, unparsable or non-finite number, non-unit
+// quaternion, non-rotation 3x3 block, timestamps or frame indices not strictly increasing).
+#include <filesystem>
+#include <string>
+
+#include "sparseloop/core/trajectory.h"
+
+namespace sparseloop {
+
+enum class TrajectoryFormat { kAuto, kTum, kKitti, kEuroc, kPositions };
+
+// "auto", "tum", "kitti", "euroc", "positions" (case-sensitive); anything else throws
+// std::invalid_argument listing the valid names.
+TrajectoryFormat ParseTrajectoryFormat(const std::string& name);
+std::string ToString(TrajectoryFormat format);
+
+// Tolerances of the strict readers (also documented in docs/FORMATS.md).
+inline constexpr double kQuaternionNormTolerance = 1e-3;  // | |q| - 1 | above this -> FileError
+inline constexpr double kRotationTolerance = 1e-3;        // max |R^T R - I| above this -> FileError
+
+// The format of an existing file according to the auto-detection rule (first data line only).
+// Throws FileError for a missing/empty file or when no rule matches.
+TrajectoryFormat DetectTrajectoryFormat(const std::filesystem::path& path);
+
+struct TrajectoryReadOptions {
+  // Strict by default: equal timestamps (or frame indices) are a FileError. True: keep the first
+  // pose of each run of equal timestamps / frame indices and log a warning. Real files need this:
+  // the official TUM fr2/desk groundtruth.txt repeats 1311868229.5760 (line 10863).
+  bool drop_duplicate_timestamps = false;
+
+  void Check() const {}
+};
+
+// Reads a trajectory; `format` kAuto applies DetectTrajectoryFormat, any other value is obeyed.
+// Quaternions within kQuaternionNormTolerance of unit norm and 3x3 blocks within
+// kRotationTolerance of a rotation are normalised / re-orthonormalised.
+Trajectory ReadTrajectory(const std::filesystem::path& path,
+                          TrajectoryFormat format = TrajectoryFormat::kAuto);
+Trajectory ReadTrajectory(const std::filesystem::path& path, TrajectoryFormat format,
+                          const TrajectoryReadOptions& options);
+
+// Writes atomically (WriteFileAtomically). kTum: "%.9f" time, poses with shortest round-trip
+// precision; kKitti: 12 numbers per line (the frame index is not written); kEuroc: CSV with
+// integer nanosecond timestamps; kPositions: "frame x y z". kAuto throws std::invalid_argument;
+// so does writing a positions-only trajectory (has_rotation false) as TUM, KITTI or EuRoC.
+void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
+                     TrajectoryFormat format);
+
+}  // namespace sparseloop

@@ -1,0 +1,30 @@
+#pragma once
+// Brute-force Hamming matching of two small descriptor sets (K x K popcounts on 64-bit words).
+#include <vector>
+
+#include "sparseloop/features/informative_features.h"
+
+namespace sparseloop {
+
+struct MatchOptions {
+  int max_distance = 64;  // largest accepted Hamming distance, bits (of 256)
+  double ratio = 0.9;     // best < ratio * second best (1 = no ratio test), ratio in (0, 1]
+  bool mutual = true;     // keep a match only when it is also best in the other direction
+  void Check() const;
+};
+
+struct DescriptorMatch {
+  int query = 0;     // index into the query descriptors
+  int train = 0;     // index into the candidate descriptors
+  int distance = 0;  // Hamming distance, bits
+};
+
+// Matches every query descriptor against `train`; result sorted by query index. Deterministic.
+std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& query,
+                                              const std::vector<Descriptor>& train,
+                                              const MatchOptions& options);
+
+// Score of a match set: sum over matches of (max_distance + 1 - distance) / (max_distance + 1).
+double MatchScore(const std::vector<DescriptorMatch>& matches, int max_distance);
+
+}  // namespace sparseloop

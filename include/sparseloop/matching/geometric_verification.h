@@ -1,0 +1,54 @@
+#pragma once
+// Geometric verification of a descriptor-matched keyframe pair: essential matrix (5-point RANSAC
+// on normalised coordinates), fundamental matrix (intrinsics unknown), PnP (depths on one side) or
+// 3D-3D Sim(3) (depths on both sides). All seeded, deterministic.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sparseloop/core/sim3.h"
+#include "sparseloop/features/informative_features.h"
+#include "sparseloop/matching/descriptor_matching.h"
+
+namespace sparseloop {
+
+enum class VerificationMethod { kEssential, kFundamental, kPnP, kSim3 };
+const char* ToString(VerificationMethod method);
+
+// What the relative pose of a verified pair means.
+enum class RelativePoseKind {
+  kNone,                // no pose (fundamental matrix)
+  kSE3UnitTranslation,  // rotation + translation direction (|t| = 1), monocular two-view
+  kSE3Metric,           // rotation + translation in the depth units of one side (PnP)
+  kSim3,                // rotation, translation and scale (3D-3D with depths on both sides)
+};
+const char* ToString(RelativePoseKind kind);
+
+struct VerifyOptions {
+  double threshold_px = 2.0;      // RANSAC inlier threshold, pixels (divided by the focal length)
+  double confidence = 0.999;      // RANSAC confidence, probability in (0, 1)
+  int max_iterations = 1000;      // RANSAC iterations, count
+  int min_inliers = 12;           // a pair with fewer geometric inliers fails, count
+  double min_inlier_ratio = 0.0;  // inliers / matches below this fail, ratio in [0, 1]
+  bool use_fundamental = false;   // intrinsics unknown: fundamental matrix instead of essential
+  bool use_depths = true;         // use PnP / Sim(3) when depths exist
+  uint64_t seed = 42;             // RNG seed (cv::theRNG and the Sim(3) RANSAC)
+  void Check() const;
+};
+
+struct VerificationResult {
+  bool success = false;  // enough inliers and a valid model
+  VerificationMethod method = VerificationMethod::kEssential;
+  int inliers = 0;  // geometric inliers, count
+  int matches = 0;  // descriptor matches tested, count
+  RelativePoseKind pose_kind = RelativePoseKind::kNone;
+  // Pose of the query camera in the match camera: p_in_match = match_from_query * p_in_query.
+  Sim3d match_from_query;
+  std::vector<int> inlier_matches;  // indices into the matches
+};
+
+VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord& match,
+                              const std::vector<DescriptorMatch>& matches,
+                              const VerifyOptions& options);
+
+}  // namespace sparseloop

@@ -1,0 +1,101 @@
+#pragma once
+// The offline pipeline behind `sparseloop run`: every dataset frame is a keyframe with its raw
+// vSLAM pose; the detector finds loops, a pose graph over the raw poses plus the loop edges is
+// optimised (outlier loops rejected), and every raw pose is corrected (keyframes by the solve,
+// poses between keyframes by interpolation of the correction on Sim(3)).
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sparseloop/core/trajectory.h"
+#include "sparseloop/io/dataset.h"
+#include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/posegraph/pose_graph.h"
+
+namespace sparseloop {
+
+struct PipelineOptions {
+  LoopDetector::Options detector;
+  PoseGraphOptions optimizer;
+  OdometryWeighting odometry;         // information of the raw odometry edges
+  DirectionLoopOptions direction_loop;  // loops measured as rotation + unit direction (no depth)
+  VertexType vertex_type = VertexType::kSim3;  // kSim3 for monocular raw poses
+  // Loops with a metric or Sim(3) relative pose (depths available): standard deviations.
+  double loop_translation_sigma_steps = 0.5;  // in units of the raw step length at the query
+  double loop_rotation_sigma_rad = 0.02;      // rad
+  double loop_scale_sigma = 0.05;             // log-scale
+  // Read DIR/mapped/NNNNNN.txt ("u v depth" per line) when the dataset folder has it.
+  bool use_mapped_pixels = true;
+  // Raw poses are matched to frames by timestamp when both have timestamps (max |dt|, seconds),
+  // else by frame index.
+  double raw_association_max_dt = 0.02;
+  // A frame whose image cannot be read is skipped (logged, counted) instead of aborting the run.
+  bool skip_unreadable_frames = true;
+  // Persistent map (optional): keyframe records and loops are stored there in a new session.
+  std::filesystem::path map_path;
+  std::string session_label = "run";
+  void Check() const;
+};
+
+struct PipelineProgress {
+  size_t frames_done = 0;
+  size_t frames_total = 0;
+  size_t loops = 0;
+};
+using PipelineProgressCallback = std::function<void(const PipelineProgress&)>;
+
+struct PipelineResult {
+  std::vector<LoopResult> frame_results;  // one per processed keyframe, in order
+  std::vector<LoopResult> loops;          // the detected loops (before outlier rejection)
+  std::vector<bool> loop_accepted;        // per entry of `loops`: kept by the pose graph
+  std::vector<int64_t> keyframe_frames;   // dataset frame index of each processed keyframe
+  size_t skipped_frames = 0;              // unreadable images (see skip_unreadable_frames)
+  PoseGraphSummary optimizer;
+  Trajectory raw;        // raw poses matched to the dataset's frames
+  Trajectory corrected;  // same frames, corrected
+  double bytes_per_keyframe = 0.0;  // mean KeyframeRecord::Bytes() of the stored keyframes
+  double detect_seconds = 0.0;      // wall time of the detection loop (image decode included)
+};
+
+// The raw trajectory matched to the dataset's frames (by timestamp or index, see options).
+// Throws FileError when a frame has no raw pose (e.g. a pose file shorter than the image list).
+Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw,
+                                 double max_dt, const std::filesystem::path& raw_path);
+
+// Mapped pixels as written by `sparseloop render` (DIR/mapped/NNNNNN.txt: "u v depth" per line,
+// depth <= 0 unknown). Throws FileError on a malformed file.
+struct MappedPixels {
+  std::vector<cv::Point2f> pixels;
+  std::vector<float> depths;
+};
+MappedPixels ReadMappedPixels(const std::filesystem::path& path);
+
+PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw_matched,
+                           const PipelineOptions& options,
+                           const PipelineProgressCallback& progress = {});
+
+// Ground-truth verdict on detected loops: a loop is correct when the GT positions of its two
+// frames are closer than `threshold` (GT units). GT poses are found by timestamp when the GT has
+// timestamps (nearest within max_dt of the raw frame's time), else by frame index.
+struct LoopTruth {
+  double threshold = 0.0;                  // GT units
+  std::vector<std::optional<bool>> correct;  // per loop; nullopt when a frame has no GT pose
+  size_t num_correct() const;
+  size_t num_false() const;
+};
+// threshold <= 0: 5% of the GT path length, capped at 10 GT units.
+LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Trajectory& gt,
+                                 const Trajectory& raw_matched, double threshold,
+                                 double max_dt = 0.02);
+
+// The loop edge for a detected loop, chosen by what the detector measured (docs/POSEGRAPH.md):
+// Sim(3) or metric SE(3) -> the full relative pose; rotation + unit direction -> the magnitude
+// from the raw trajectory's local step length.
+LoopConstraint MakeLoopConstraint(const LoopResult& loop, const Sim3d& raw_world_from_query,
+                                  const Sim3d& raw_world_from_match, double local_step_length,
+                                  const PipelineOptions& options);
+
+}  // namespace sparseloop

@@ -1,0 +1,216 @@
+#pragma once
+// Pose graph over keyframe poses with odometry and loop edges, optimised with Ceres.
+//
+// Vertices are keyframe poses world_from_keyframe stored as Sim3d; the VertexType of the graph
+// chooses the degrees of freedom (Sim(3) for monocular input, SE(3) for metric input, 4-DoF for
+// gravity-aligned VIO, SE(2) for planar benchmark graphs). Edges measure a_from_b.
+// Loops are kept apart from the other edges so that outlier rejection (PCM, switchable
+// constraints) can drop them; the summary reports which loops were rejected.
+#include <atomic>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "sparseloop/core/loop_pair.h"
+#include "sparseloop/core/sim3.h"
+#include "sparseloop/posegraph/edge_error.h"
+#include "sparseloop/posegraph/manifolds.h"
+
+namespace sparseloop {
+
+// A non-loop edge (odometry, or any edge of a g2o file): measures from_from_to, i.e. the pose
+// of vertex `to` in the frame of vertex `from`.
+struct PoseGraphEdge {
+  int64_t from = 0;
+  int64_t to = 0;
+  Sim3d from_from_to;  // measured relative pose
+  // Information (inverse covariance) in tangent order [upsilon(3), omega(3), sigma]; units
+  // 1/unit^2, 1/rad^2, 1/(log scale)^2.
+  Matrix7d information = Matrix7d::Identity();
+};
+
+// A loop closure as the detector measures it (the loop module converts its result into this).
+struct LoopConstraint {
+  int64_t query_id = 0;  // the later keyframe
+  int64_t match_id = 0;  // the earlier keyframe it revisits
+  // Pose of the query keyframe in the match keyframe's frame. With depths the detector solves the
+  // full Sim(3); with 2D-only matches see MakeLoopConstraintFromDirection (scale 1, translation
+  // magnitude taken from the raw trajectory).
+  Sim3d match_from_query;
+  // Information in tangent order [upsilon, omega, sigma]; multiplied by `weight`.
+  Matrix7d information = Matrix7d::Identity();
+  double weight = 1.0;    // unitless multiplier of the information (e.g. inlier ratio)
+  bool has_scale = true;  // false: the relative scale is unknown; its information is zeroed
+};
+
+// Information of odometry edges built from consecutive raw vSLAM poses. A raw step of length L
+// (raw units) gets standard deviations
+//   translation: max(translation_fraction * L, min_translation_sigma)   (raw units, isotropic)
+//   rotation:    rotation_sigma_rad                                       (rad, isotropic)
+//   log scale:   scale_sigma                                              (unitless)
+// i.e. information = diag(1/sigma^2). Uncertainty proportional to the distance travelled is the
+// usual VO drift model; a loop edge with a comparable sigma then pulls hard enough to correct
+// the accumulated drift while a single wrong loop cannot outweigh a long odometry chain.
+struct OdometryWeighting {
+  double translation_fraction = 0.02;   // unitless: sigma_t / step length
+  double min_translation_sigma = 1e-3;  // raw units: floor for stationary steps
+  double rotation_sigma_rad = 0.002;    // rad per step
+  double scale_sigma = 0.002;           // log-scale per step (only used by Sim(3) graphs)
+  void Check() const;
+  Matrix7d Information(const Sim3d& from_from_to) const;
+};
+
+enum class RobustLoss { kTrivial, kHuber, kCauchy };
+enum class OutlierRejection {
+  kNone,        // plain least squares (with the chosen robust loss)
+  kPcm,         // pairwise consistency maximisation, then the solve with accepted loops
+  kSwitchable,  // switchable constraints (Suenderhauf & Protzel 2012)
+  kPcmAndSwitchable,
+};
+
+// Pairwise consistency maximisation (Mangelson et al. 2018, as in Kimera-RPGO). Two loops a, b
+// are consistent when the cycle  Z_a * odom(q_a -> q_b) * Z_b^-1 * odom(m_b -> m_a)  is close to
+// identity in the Mahalanobis sense; the largest set of mutually consistent loops (maximum clique)
+// is kept. Odometry over the raw (initial) vertex poses; its covariance is accumulated with the
+// per-step model below, including the lever arm of rotation and scale drift over the chain.
+struct PcmOptions {
+  double confidence = 0.99;              // chi2 quantile used as the threshold (unitless)
+  double step_translation_fraction = 0.05;  // sigma_t per step / step length (unitless)
+  double step_rotation_sigma_rad = 0.01;    // rad per step (also the lever-arm drift rate)
+  double step_scale_sigma = 0.01;           // log-scale per step (also lever arm); Sim(3) only
+  size_t max_exact_clique = 64;  // loops; above this a greedy clique is used
+  void Check() const;
+};
+
+struct PoseGraphOptions {
+  int max_iterations = 100;           // Levenberg-Marquardt iterations
+  double function_tolerance = 1e-6;   // relative cost change for convergence
+  double gradient_tolerance = 1e-10;  // Ceres gradient tolerance
+  double parameter_tolerance = 1e-8;  // Ceres parameter tolerance
+  // Loss on loop residuals. Trivial by default: at the first solve the drift makes true loops
+  // look like huge residuals, and a redescending loss (Cauchy) would ignore exactly those.
+  RobustLoss loop_loss = RobustLoss::kTrivial;
+  RobustLoss edge_loss = RobustLoss::kTrivial;  // loss on non-loop edges
+  double loss_scale = 1.0;  // whitened residual units (sigmas) where the robust loss bends
+  OutlierRejection rejection = OutlierRejection::kPcm;
+  PcmOptions pcm;
+  double switch_prior_sigma = 1.0;  // unitless: std-dev of the switch prior (1 - s)
+  double switch_reject_below = 0.5;  // switch value below which a loop is reported rejected
+  int num_threads = 1;               // Ceres threads
+  bool log_progress = false;         // per-iteration log through Logger() (never stdout)
+  void Check() const;
+};
+
+enum class PoseGraphStatus {
+  kConverged,      // a Ceres convergence criterion was met
+  kMaxIterations,  // ran out of iterations; the estimate is still updated
+  kInterrupted,    // stopped by the interrupt flag; the estimate holds the last accepted step
+  kFailed,         // Ceres failed (numerical problem); the estimate is unchanged
+  kNothingToDo,    // fewer than two vertices
+};
+const char* ToString(PoseGraphStatus status);
+
+struct PoseGraphSummary {
+  PoseGraphStatus status = PoseGraphStatus::kNothingToDo;
+  double initial_cost = 0.0;  // 0.5 * sum of squared (robustified) residuals, Ceres convention
+  double final_cost = 0.0;
+  int iterations = 0;
+  double solve_seconds = 0.0;      // Ceres time
+  double rejection_seconds = 0.0;  // PCM time
+  size_t num_vertices = 0;
+  size_t num_edges = 0;
+  size_t num_loops = 0;
+  std::vector<size_t> rejected_loops;      // indices into PoseGraph::loops()
+  std::vector<LoopPair> rejected_loop_ids;  // {query_id, match_id} of each rejected loop
+  std::string ceres_message;
+  std::string BriefReport() const;
+};
+
+class PoseGraph {
+ public:
+  explicit PoseGraph(VertexType type = VertexType::kSim3) : type_(type) {}
+
+  VertexType vertex_type() const { return type_; }
+
+  // Adds a vertex; its pose is also remembered as the raw (initial) pose that PCM uses.
+  void AddVertex(int64_t id, const Sim3d& world_from_vertex);
+  bool HasVertex(int64_t id) const { return index_.count(id) > 0; }
+  const Sim3d& Pose(int64_t id) const;
+  const Sim3d& RawPose(int64_t id) const;
+  void SetPose(int64_t id, const Sim3d& world_from_vertex);
+  // Vertex ids in insertion order (time order for a SLAM graph).
+  const std::vector<int64_t>& VertexIds() const { return ids_; }
+  size_t num_vertices() const { return ids_.size(); }
+
+  void AddEdge(const PoseGraphEdge& edge);
+  // Returns the index of the loop in loops().
+  size_t AddLoop(const LoopConstraint& loop);
+  const std::vector<PoseGraphEdge>& edges() const { return edges_; }
+  const std::vector<LoopConstraint>& loops() const { return loops_; }
+
+  // The gauge: Sim(3) has 7 gauge degrees of freedom (SE(3) 6, 4-DoF 4, SE(2) 3): the whole graph
+  // can be moved, rotated (and scaled) without changing any residual, which leaves the normal
+  // equations singular. Holding one vertex constant fixes it. Default: the first vertex added.
+  void SetFixedVertex(int64_t id);
+  int64_t fixed_vertex() const;
+
+  // Synchronous, deterministic solve. `interrupt` (optional, non-owning) is polled after every
+  // iteration; when it becomes true the solve stops with status kInterrupted.
+  PoseGraphSummary Optimize(const PoseGraphOptions& options,
+                            const std::atomic<bool>* interrupt = nullptr);
+
+  // Indices of loops that PCM keeps (maximum clique of pairwise-consistent loops).
+  std::vector<size_t> PcmConsistentLoops(const PcmOptions& options) const;
+
+ private:
+  size_t Index(int64_t id) const;
+
+  VertexType type_;
+  std::vector<int64_t> ids_;
+  std::unordered_map<int64_t, size_t> index_;
+  std::vector<Vector8d> params_;  // current estimates, Sim3d::ToVector order
+  std::vector<Sim3d> poses_;      // current estimates as Sim3d (kept in sync with params_)
+  std::vector<Sim3d> raw_poses_;
+  std::vector<PoseGraphEdge> edges_;
+  std::vector<LoopConstraint> loops_;
+  std::optional<int64_t> fixed_;
+};
+
+// Builds a graph whose vertices are the raw keyframe poses (ids[i] -> raw_world_from_keyframe[i],
+// in time order) and whose edges are the consecutive raw relative poses weighted by `weighting`.
+PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
+                             const std::vector<Sim3d>& raw_world_from_keyframe, VertexType type,
+                             const OdometryWeighting& weighting = {});
+
+// Loop constraint from a 2D-only relative pose (rotation + unit translation direction, as the
+// essential matrix gives). The translation magnitude is unobservable from the two views; it is
+// taken as `baseline_in_steps` times `local_step_length`, the raw distance between the query and
+// its previous keyframe (the raw trajectory's local scale at the query). The magnitude gets a
+// large uncertainty (magnitude_sigma_fraction of the magnitude along the direction), the
+// perpendicular directions `direction_sigma_rad` times the magnitude, and the scale no
+// information (has_scale = false).
+struct DirectionLoopOptions {
+  double baseline_in_steps = 1.0;          // unitless: assumed |t| / local step length
+  double magnitude_sigma_fraction = 1.0;   // unitless: sigma along the direction / magnitude
+  double direction_sigma_rad = 0.05;       // rad: angular uncertainty of the direction
+  double rotation_sigma_rad = 0.01;        // rad
+  double weight = 1.0;                     // unitless information multiplier
+  void Check() const;
+};
+// The magnitude is converted from world units into the query's frame with the raw query scale
+// (1 for raw vSLAM poses); the raw match pose is used only to check the ids' poses are valid.
+LoopConstraint MakeLoopConstraintFromDirection(int64_t query_id, int64_t match_id,
+                                               const Sim3d& raw_world_from_query,
+                                               const Sim3d& raw_world_from_match,
+                                               const Eigen::Quaterniond& match_from_query_rotation,
+                                               const Eigen::Vector3d& unit_direction,
+                                               double local_step_length,
+                                               const DirectionLoopOptions& options = {});
+
+// Loop information from standard deviations (translation in the query's raw units, rotation in
+// rad, log-scale unitless): diag(1/sigma^2).
+Matrix7d LoopInformation(double translation_sigma, double rotation_sigma_rad, double scale_sigma);
+
+}  // namespace sparseloop

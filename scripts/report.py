@@ -1,0 +1,342 @@
+#!/usr/bin/env python3
+"""One-page HTML report of a sparseloop run directory (headless, matplotlib Agg).
+
+Usage: report.py DIR [--false-loop-distance METRES]
+
+Reads (every file optional except at least one trajectory):
+  poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
+  poses_raw.txt                raw (drifting) input trajectory
+  trajectory.txt               corrected trajectory written by `sparseloop run`
+  loops.csv                    accepted loops, header with at least "query,match" (+ "score")
+  gt_loops.txt                 ground-truth loop pairs "i j" (for the P/R curve)
+  pr_curve.csv                 precomputed "threshold,precision,recall" (used when present)
+  summary.json                 {"timing": {"stage": ms or {"mean_ms":...}}, ...}
+  timings.csv                  per-keyframe timings, one column per stage (ms)
+Writes DIR/report.html and DIR/report_*.png (PNGs beside the HTML).
+Trajectories are associated by frame index (KITTI) or nearest timestamp (TUM); raw and
+corrected are Sim(3)-aligned to GT (Umeyama) for plotting, as monocular scale is arbitrary.
+"""
+import argparse
+import csv
+import html
+import json
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def read_trajectory(path):
+    """Returns (keys, positions Nx3, kind) where keys are frame indices or timestamps."""
+    rows = []
+    with open(path) as f:
+        for line in f:
+            line = line.strip()
+            if not line or line.startswith("#"):
+                continue
+            rows.append([float(x) for x in line.replace(",", " ").split()])
+    if not rows:
+        raise ValueError(f"{path}: no data lines")
+    n = len(rows[0])
+    a = np.array(rows)
+    if n == 12:
+        return np.arange(len(a)), a[:, [3, 7, 11]], "index"
+    if n == 13:
+        return a[:, 0].astype(int), a[:, [4, 8, 12]], "index"
+    if n == 8:
+        return a[:, 0], a[:, 1:4], "time"
+    if n == 4:
+        return a[:, 0].astype(int), a[:, 1:4], "index"
+    raise ValueError(f"{path}: cannot tell the format from {n} columns")
+
+
+def associate(keys_a, kind_a, keys_b, kind_b, max_dt=0.02):
+    """Index pairs (ia, ib) matching by frame index, or by nearest time within max_dt."""
+    pairs = []
+    if kind_a == "index" and kind_b == "index":
+        lut = {int(k): i for i, k in enumerate(keys_b)}
+        for i, k in enumerate(keys_a):
+            j = lut.get(int(k))
+            if j is not None:
+                pairs.append((i, j))
+    else:
+        kb = np.asarray(keys_b, dtype=float)
+        for i, k in enumerate(keys_a):
+            j = int(np.argmin(np.abs(kb - k)))
+            if abs(kb[j] - k) <= max_dt:
+                pairs.append((i, j))
+    return pairs
+
+
+def umeyama_sim3(src, dst):
+    """s, R, t minimising |dst - (s R src + t)|^2."""
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    xs, xd = src - mu_s, dst - mu_d
+    cov = xd.T @ xs / len(src)
+    u, d, vt = np.linalg.svd(cov)
+    s_mat = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0:
+        s_mat[2, 2] = -1
+    r = u @ s_mat @ vt
+    var = (xs ** 2).sum() / len(src)
+    scale = np.trace(np.diag(d) @ s_mat) / var if var > 0 else 1.0
+    t = mu_d - scale * r @ mu_s
+    return scale, r, t
+
+
+def top_view_axes(p):
+    """The two axes of largest spread (KITTI: x-z, aerial: x-y)."""
+    spread = p.max(0) - p.min(0)
+    ax = sorted(np.argsort(spread)[-2:])
+    return ax
+
+
+def read_loops(path):
+    loops = []
+    with open(path) as f:
+        reader = csv.DictReader(line for line in f if not line.startswith("#"))
+        for row in reader:
+            try:
+                q, m = int(float(row["query"])), int(float(row["match"]))
+            except (KeyError, ValueError):
+                continue
+            score = float(row["score"]) if row.get("score") not in (None, "") else float("nan")
+            loops.append((q, m, score))
+    return loops
+
+
+def read_pairs(path):
+    pairs = set()
+    with open(path) as f:
+        for line in f:
+            t = line.split()
+            if len(t) >= 2 and not line.startswith("#"):
+                i, j = int(t[0]), int(t[1])
+                pairs.add((max(i, j), min(i, j)))
+    return pairs
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dir")
+    ap.add_argument("--false-loop-distance", type=float, default=10.0)
+    args = ap.parse_args()
+    d = args.dir
+    fp = lambda name: os.path.join(d, name)  # noqa: E731
+    sections, notes = [], []
+
+    traj = {}
+    for label, names in (("GT", ["poses_gt.txt", "poses.txt"]), ("raw", ["poses_raw.txt"]),
+                         ("corrected", ["trajectory.txt"])):
+        for name in names:
+            if os.path.isfile(fp(name)):
+                try:
+                    traj[label] = read_trajectory(fp(name)) + (name,)
+                except ValueError as e:
+                    notes.append(str(e))
+                break
+    if not traj:
+        print(f"report.py: no trajectory in {d} (poses_gt.txt, poses_raw.txt, trajectory.txt)",
+              file=sys.stderr)
+        return 2
+
+    # Align raw / corrected to GT by Sim(3) on associated positions.
+    aligned, errors = {}, {}
+    gt = traj.get("GT")
+    for label in ("raw", "corrected"):
+        if label not in traj:
+            continue
+        keys, pos, kind, _ = traj[label]
+        if gt is None:
+            aligned[label] = (keys, pos)
+            continue
+        pairs = associate(keys, kind, gt[0], gt[2])
+        if len(pairs) < 3:
+            notes.append(f"{label}: fewer than 3 poses associate with GT; not aligned")
+            aligned[label] = (keys, pos)
+            continue
+        ia = np.array([p[0] for p in pairs])
+        ib = np.array([p[1] for p in pairs])
+        s, r, t = umeyama_sim3(pos[ia], gt[1][ib])
+        pa = (s * (r @ pos.T)).T + t
+        aligned[label] = (keys, pa)
+        err = np.linalg.norm(pa[ia] - gt[1][ib], axis=1)
+        errors[label] = (gt[0][ib] if gt[2] == "index" else ib, err)
+
+    ref = gt[1] if gt is not None else next(iter(aligned.values()))[1]
+    ax_idx = top_view_axes(ref)
+    names = "xyz"
+
+    # 1. Top view with loops.
+    loops = read_loops(fp("loops.csv")) if os.path.isfile(fp("loops.csv")) else []
+    fig, ax = plt.subplots(figsize=(8, 7))
+    colours = {"GT": "k", "raw": "tab:red", "corrected": "tab:blue"}
+    if gt is not None:
+        ax.plot(gt[1][:, ax_idx[0]], gt[1][:, ax_idx[1]], "-", color="k", lw=1.2, label="GT")
+    for label, (keys, p) in aligned.items():
+        ax.plot(p[:, ax_idx[0]], p[:, ax_idx[1]], "-", color=colours[label], lw=1.0,
+                label=f"{label} (Sim3-aligned)" if gt is not None else label)
+    n_true = n_false = 0
+    if loops:
+        base_label = "corrected" if "corrected" in aligned else ("GT" if gt is not None else None)
+        if base_label == "GT":
+            base_keys, base_pos = gt[0], gt[1]
+        elif base_label is not None:
+            base_keys, base_pos = aligned[base_label]
+        lut = {int(k): i for i, k in enumerate(base_keys)} if base_label else {}
+        gt_lut = {int(k): i for i, k in enumerate(gt[0])} if gt is not None and gt[2] == "index" else {}
+        for q, m, _ in loops:
+            if q not in lut or m not in lut:
+                continue
+            false = False
+            if gt_lut and q in gt_lut and m in gt_lut:
+                false = np.linalg.norm(gt[1][gt_lut[q]] - gt[1][gt_lut[m]]) > args.false_loop_distance
+            a, b = base_pos[lut[q]], base_pos[lut[m]]
+            ax.plot([a[ax_idx[0]], b[ax_idx[0]]], [a[ax_idx[1]], b[ax_idx[1]]], "-",
+                    color="tab:orange" if false else "tab:green", lw=1.5 if false else 0.8,
+                    alpha=0.9)
+            n_false += false
+            n_true += not false
+        ax.plot([], [], "-", color="tab:green", label=f"accepted loops ({n_true})")
+        if gt_lut:
+            ax.plot([], [], "-", color="tab:orange",
+                    label=f"false loops ({n_false}, GT dist > {args.false_loop_distance:g})")
+    ax.set_xlabel(f"{names[ax_idx[0]]} [m]")
+    ax.set_ylabel(f"{names[ax_idx[1]]} [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title("Top view")
+    fig.tight_layout()
+    fig.savefig(fp("report_topview.png"), dpi=90)
+    plt.close(fig)
+    sections.append(("Top view", "report_topview.png",
+                     f"{len(loops)} accepted loops" + (f", {n_false} false" if gt is not None else "")))
+
+    # 2. Error along the trajectory.
+    if errors:
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        stats = []
+        for label, (x, e) in errors.items():
+            ax.plot(x, e, "-", color=colours[label], lw=1.0, label=label)
+            stats.append(f"{label}: RMSE {math.sqrt(float(np.mean(e ** 2))):.2f} m, "
+                         f"max {float(np.max(e)):.2f} m")
+        ax.set_xlabel("frame")
+        ax.set_ylabel("position error [m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        ax.set_title("Position error after Sim(3) alignment")
+        fig.tight_layout()
+        fig.savefig(fp("report_error.png"), dpi=90)
+        plt.close(fig)
+        sections.append(("Error along the trajectory", "report_error.png", "; ".join(stats)))
+
+    # 3. Timing per stage.
+    timing = {}
+    if os.path.isfile(fp("timings.csv")):
+        with open(fp("timings.csv")) as f:
+            reader = csv.DictReader(f)
+            for row in reader:
+                for k, v in row.items():
+                    if k in ("keyframe", "frame", "query") or v in (None, ""):
+                        continue
+                    try:
+                        timing.setdefault(k, []).append(float(v))
+                    except ValueError:
+                        pass
+    summary = {}
+    if os.path.isfile(fp("summary.json")):
+        with open(fp("summary.json")) as f:
+            summary = json.load(f)
+    if not timing and isinstance(summary.get("timing"), dict):
+        for k, v in summary["timing"].items():
+            if isinstance(v, (int, float)):
+                timing[k] = [float(v)]
+            elif isinstance(v, dict):
+                val = v.get("mean_ms", v.get("mean", v.get("total_ms")))
+                if isinstance(val, (int, float)):
+                    timing[k] = [float(val)]
+    if timing:
+        stages = list(timing)
+        fig, axes = plt.subplots(1, len(stages), figsize=(min(3 * len(stages), 14), 3),
+                                 squeeze=False)
+        for a, stage in zip(axes[0], stages):
+            vals = np.array(timing[stage])
+            if len(vals) > 1:
+                a.hist(vals, bins=30, color="tab:purple")
+                a.set_title(f"{stage}\nmedian {np.median(vals):.2f} ms", fontsize=9)
+            else:
+                a.bar([0], vals, color="tab:purple")
+                a.set_xticks([])
+                a.set_title(f"{stage}\n{vals[0]:.2f} ms", fontsize=9)
+            a.set_xlabel("ms")
+        fig.tight_layout()
+        fig.savefig(fp("report_timing.png"), dpi=90)
+        plt.close(fig)
+        sections.append(("Timing per stage", "report_timing.png",
+                         "per keyframe (timings.csv)" if os.path.isfile(fp("timings.csv"))
+                         else "from summary.json"))
+
+    # 4. Precision / recall.
+    curve = None
+    if os.path.isfile(fp("pr_curve.csv")):
+        with open(fp("pr_curve.csv")) as f:
+            rows = list(csv.DictReader(f))
+        curve = [(float(r["recall"]), float(r["precision"])) for r in rows]
+    elif os.path.isfile(fp("gt_loops.txt")) and loops:
+        gt_pairs = read_pairs(fp("gt_loops.txt"))
+        gt_queries = {q for q, _ in gt_pairs}
+        ranked = sorted(loops, key=lambda l: -l[2] if not math.isnan(l[2]) else 0)
+        tp = 0
+        curve = []
+        for k, (q, m, _) in enumerate(ranked, 1):
+            tp += (q, m) in gt_pairs
+            curve.append((tp / max(len(gt_queries), 1), tp / k))
+    if curve:
+        r, p = zip(*curve)
+        fig, ax = plt.subplots(figsize=(4.5, 4))
+        ax.plot(r, p, "-o", ms=2)
+        ax.set_xlabel("recall")
+        ax.set_ylabel("precision")
+        ax.set_xlim(0, 1.02)
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+        ax.set_title("Loop detection P/R")
+        fig.tight_layout()
+        fig.savefig(fp("report_pr.png"), dpi=90)
+        plt.close(fig)
+        sections.append(("Precision / recall", "report_pr.png", ""))
+
+    # HTML (written to a temporary file, then renamed: atomic).
+    body = [f"<h1>sparseloop report</h1><p>{html.escape(os.path.abspath(d))}</p>",
+            "<ul>" + "".join(f"<li>{html.escape(k)}: {html.escape(v[3])}</li>"
+                             for k, v in traj.items()) + "</ul>"]
+    if summary:
+        flat = {k: v for k, v in summary.items() if not isinstance(v, (dict, list))}
+        if flat:
+            body.append("<table>" + "".join(
+                f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
+                for k, v in flat.items()) + "</table>")
+    for title, png, caption in sections:
+        body.append(f"<h2>{html.escape(title)}</h2><p>{html.escape(caption)}</p>"
+                    f"<img src=\"{png}\" alt=\"{html.escape(title)}\">")
+    for n in notes:
+        body.append(f"<p><em>{html.escape(n)}</em></p>")
+    page = ("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>sparseloop report</title>"
+            "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
+            "img{max-width:100%}td{padding:2px 8px}</style></head><body>"
+            + "\n".join(body) + "</body></html>\n")
+    tmp = fp(f"report.html.tmp.{os.getpid()}")
+    with open(tmp, "w") as f:
+        f.write(page)
+    os.replace(tmp, fp("report.html"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

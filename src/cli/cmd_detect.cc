@@ -1,0 +1,190 @@
+// sparseloop detect: run the loop detector over an image dataset and write the loops it finds.
+// Parses arguments, calls the library (io: dataset; loop: detector), prints and writes files.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/command.h"
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/error.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+#include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/dataset.h"
+#include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/pipeline/config.h"
+
+namespace sparseloop::cli {
+
+namespace {
+
+// "fx,fy,cx,cy" -> intrinsics (std::invalid_argument when malformed).
+CameraIntrinsics ParseIntrinsics(const std::string& spec) {
+  std::vector<double> v;
+  std::stringstream ss(spec);
+  std::string item;
+  bool ok = true;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      ok = ok && used == item.size();
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  SL_CHECK_MSG(ok && v.size() == 4, "--intrinsics expects fx,fy,cx,cy (4 numbers), got '{}'", spec);
+  CameraIntrinsics k;
+  k.fx = v[0];
+  k.fy = v[1];
+  k.cx = v[2];
+  k.cy = v[3];
+  return k;
+}
+
+nlohmann::json Stats(std::vector<double> values) {
+  if (values.empty()) return {{"median", 0.0}, {"p90", 0.0}, {"max", 0.0}};
+  std::sort(values.begin(), values.end());
+  auto at = [&](double q) {
+    const size_t i =
+        std::min(values.size() - 1, static_cast<size_t>(q * (values.size() - 1) + 0.5));
+    return values[i];
+  };
+  return {{"median", at(0.5)}, {"p90", at(0.9)}, {"max", values.back()}};
+}
+
+}  // namespace
+
+int RunDetect(int argc, char** argv) {
+  CLI::App app{"Detect loop closures in an image sequence (writes loops.csv and summary.json)"};
+  std::string dataset_spec, poses, intrinsics_spec, search_name, config_path, out_dir;
+  std::optional<int> k;
+  app.add_option("--dataset", dataset_spec, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
+      ->required();
+  app.add_option("--poses", poses, "raw vSLAM poses (any trajectory format), one per frame");
+  app.add_option("--intrinsics", intrinsics_spec, "fx,fy,cx,cy (overrides the dataset's)");
+  app.add_option("-K,--features", k, "informative features kept per keyframe (K)");
+  app.add_option("--search", search_name, "search area: paper | radius | global");
+  app.add_option("--config", config_path, "JSON options ({\"detector\": {...}})");
+  app.add_option("--out", out_dir, "output directory")->required();
+  app.parse(argc, argv);
+
+  PipelineOptions pipeline_options;
+  if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);
+  LoopDetector::Options options = pipeline_options.detector;
+  if (k) options.features.max_features = *k;
+  if (!search_name.empty()) options.search.strategy = ParseSearchStrategy(search_name);
+
+  DatasetOptions dataset_options;
+  if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsics(intrinsics_spec);
+  if (!poses.empty()) dataset_options.poses = poses;
+  const Dataset dataset = OpenDataset(dataset_spec, dataset_options);
+  SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", dataset_spec);
+  const bool have_poses = dataset.has_gt();
+  if (!have_poses) {
+    if (search_name.empty()) {
+      options.search.strategy = SearchStrategy::kGlobal;
+      Logger().info("no poses for '{}': using the global search area", dataset_spec);
+    } else {
+      SL_CHECK_MSG(options.search.strategy == SearchStrategy::kGlobal,
+                   "--search {} needs poses (--poses FILE); without poses use --search global",
+                   search_name);
+    }
+  }
+  options.Check();
+  LoopDetector detector(options);
+
+  std::filesystem::create_directories(out_dir);
+  const bool progress = isatty(fileno(stderr));
+  std::vector<LoopResult> loops;
+  std::vector<double> t_extract, t_search, t_match, t_verify, t_total;
+  size_t bytes = 0;
+  Timer wall;
+  for (size_t i = 0; i < dataset.frames.size(); ++i) {
+    const DatasetFrame& frame = dataset.frames[i];
+    KeyframeInput input;
+    input.id = frame.index;
+    input.timestamp = frame.timestamp;
+    input.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+    if (input.image.empty()) throw FileError(frame.image_path.string(), 0, "a readable image");
+    input.intrinsics = dataset.intrinsics;
+    if (frame.gt_world_from_cam)
+      input.world_from_cam = Sim3d(*frame.gt_world_from_cam);
+    else if (have_poses)
+      SL_CHECK_MSG(false, "frame {} has no pose while others do", frame.index);
+    const LoopResult r = detector.Process(input);
+    bytes += detector.record(frame.index).Bytes();
+    t_extract.push_back(r.timings.extract_ms);
+    t_search.push_back(r.timings.search_ms);
+    t_match.push_back(r.timings.match_ms);
+    t_verify.push_back(r.timings.verify_ms);
+    t_total.push_back(r.timings.total_ms);
+    if (r.detected()) loops.push_back(r);
+    if (progress) {
+      const double fps = (i + 1) / std::max(1e-9, wall.ElapsedMs() / 1000.0);
+      std::fprintf(stderr, "\rdetect: frame %zu/%zu  %.1f frames/s  %zu loops", i + 1,
+                   dataset.frames.size(), fps, loops.size());
+    }
+  }
+  if (progress) std::fprintf(stderr, "\n");
+  const double wall_ms = wall.ElapsedMs();
+
+  const std::filesystem::path out(out_dir);
+  WriteFileAtomically(out / "loops.csv", [&](std::ostream& os) {
+    os << "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale\n";
+    for (const auto& l : loops) {
+      const auto& p = l.match_from_query;
+      os << fmt::format(
+          "{},{},{:.6f},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n",
+          l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), p.rotation.x(),
+          p.rotation.y(), p.rotation.z(), p.rotation.w(), p.translation.x(), p.translation.y(),
+          p.translation.z(), p.scale);
+    }
+  });
+  nlohmann::json summary = {
+      {"dataset", dataset_spec},
+      {"keyframes", dataset.frames.size()},
+      {"loops", loops.size()},
+      {"bytes_per_keyframe", double(bytes) / dataset.frames.size()},
+      {"features_per_keyframe", options.features.max_features},
+      {"search", ToString(options.search.strategy)},
+      {"pose_kind", loops.empty() ? "none" : ToString(loops.front().pose_kind)},
+      {"timing_ms",
+       {{"extract", Stats(t_extract)},
+        {"search", Stats(t_search)},
+        {"match", Stats(t_match)},
+        {"verify", Stats(t_verify)},
+        {"total", Stats(t_total)}}},
+      {"total_ms", wall_ms},
+  };
+  summary["config"] = ConfigToJson([&] {
+    PipelineOptions p = pipeline_options;
+    p.detector = options;
+    return p;
+  }())["detector"];
+  WriteFileAtomically(out / "summary.json",
+                      [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
+  std::cout << fmt::format("{} keyframes, {} loops, {:.0f} bytes/keyframe, {:.1f} ms/keyframe\n",
+                           dataset.frames.size(), loops.size(),
+                           double(bytes) / dataset.frames.size(), wall_ms / dataset.frames.size());
+  for (const auto& l : loops)
+    std::cout << fmt::format("loop {} -> {}  inliers {}  score {:.3f}\n", l.query_id, l.match_id,
+                             l.inliers, l.score);
+  return 0;
+}
+
+SPARSELOOP_REGISTER_COMMAND("detect", "detect loop closures in an image sequence", RunDetect);
+
+}  // namespace sparseloop::cli

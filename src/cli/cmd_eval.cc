@@ -1,0 +1,197 @@
+// sparseloop eval: trajectory metrics (ATE, RPE, KITTI devkit) and loop precision/recall.
+// Parses arguments, calls the eval library, prints a table and optionally writes JSON.
+#include <cstdio>
+#include <iostream>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "cli/command.h"
+#include "sparseloop/core/check.h"
+#include "sparseloop/eval/json.h"
+#include "sparseloop/eval/loops.h"
+#include "sparseloop/eval/metrics.h"
+#include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/loop_pairs.h"
+#include "sparseloop/io/trajectory_io.h"
+
+namespace sparseloop::cli {
+
+namespace {
+
+// "DIST,GAP" -> GtLoopOptions (std::invalid_argument, i.e. exit 2, when malformed).
+GtLoopOptions ParseDeriveLoops(const std::string& spec) {
+  const auto comma = spec.find(',');
+  const std::string dist = spec.substr(0, comma);
+  const std::string gap = comma == std::string::npos ? std::string() : spec.substr(comma + 1);
+  GtLoopOptions options;
+  bool ok = comma != std::string::npos && !dist.empty() && !gap.empty();
+  if (ok) {
+    try {
+      size_t used_dist = 0;
+      size_t used_gap = 0;
+      options.distance = std::stod(dist, &used_dist);
+      options.min_gap = std::stoll(gap, &used_gap);
+      ok = used_dist == dist.size() && used_gap == gap.size();
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  SL_CHECK_MSG(ok, "--derive-loops expects DIST,GAP (metres,frames, e.g. 5,100), got '{}'", spec);
+  return options;
+}
+
+std::string Num(double v) { return fmt::format("{:.6f}", v); }
+std::string Num(const std::optional<double>& v) { return v ? Num(*v) : std::string("n/a"); }
+
+void PrintStats(const std::string& name, const ErrorStatistics& s, const std::string& unit) {
+  if (s.count == 0) {
+    std::cout << fmt::format("{:<14} n/a (no pairs)\n", name);
+    return;
+  }
+  std::cout << fmt::format(
+      "{:<14} rmse {}  mean {}  median {}  std {}  min {}  max {}  {} (n={})\n", name, Num(s.rmse),
+      Num(s.mean), Num(s.median), Num(s.std), Num(s.min), Num(s.max), unit, s.count);
+}
+
+}  // namespace
+
+int RunEval(int argc, char** argv) {
+  CLI::App app{
+      "Evaluate an estimated trajectory against ground truth (ATE, RPE, KITTI) and "
+      "loop detections against ground-truth loops (precision/recall)"};
+  std::string gt_path, est_path, gt_format = "auto", est_format = "auto", align = "sim3";
+  std::string associate = "auto", gt_loops_path, derive_loops, loops_path, json_path;
+  std::string rpe_unit = "frames";
+  EvaluationOptions options;
+  GtLoopOptions gt_loop_options;
+  LoopEvalOptions loop_options;
+  app.add_option("--gt", gt_path, "ground-truth trajectory file")->required();
+  app.add_option("--est", est_path, "estimated trajectory file")->required();
+  app.add_option("--gt-format", gt_format, "auto|tum|kitti|euroc|positions")->capture_default_str();
+  app.add_option("--est-format", est_format, "auto|tum|kitti|euroc|positions")
+      ->capture_default_str();
+  app.add_option("--align", align, "alignment of est to gt: sim3|se3|none (monocular: sim3)")
+      ->capture_default_str();
+  app.add_option("--associate", associate,
+                 "time|index|auto (auto: time when both files carry timestamps, else index)")
+      ->capture_default_str();
+  app.add_option("--max-dt", options.association.max_dt,
+                 "largest timestamp difference for time association, seconds")
+      ->capture_default_str();
+  app.add_option("--rpe-delta", options.rpe.delta, "RPE pair distance (frames or metres)")
+      ->capture_default_str();
+  app.add_option("--rpe-unit", rpe_unit, "frames|m")->capture_default_str();
+  auto* gt_loops_opt =
+      app.add_option("--gt-loops", gt_loops_path, "ground-truth loop pairs file ('i j' per line)");
+  auto* derive_opt = app.add_option("--derive-loops", derive_loops,
+                                    "derive GT loops from gt poses: DIST,GAP (metres, frames)");
+  gt_loops_opt->excludes(derive_opt);
+  app.add_option("--view-angle", gt_loop_options.max_view_angle_deg,
+                 "with --derive-loops: max angle between viewing directions, degrees")
+      ->capture_default_str();
+  app.add_option("--loops", loops_path, "detector loops.csv (columns query,match,score,...)");
+  app.add_option("--frame-tolerance", loop_options.frame_tolerance,
+                 "allowed |match - gt match| in frames for a correct loop")
+      ->capture_default_str();
+  app.add_option("--json", json_path, "write all results as JSON to this file (atomically)");
+  app.parse(argc, argv);
+
+  options.alignment = ParseAlignment(align);
+  SL_CHECK_MSG(rpe_unit == "frames" || rpe_unit == "m", "--rpe-unit must be frames or m, got '{}'",
+               rpe_unit);
+  options.rpe.unit = rpe_unit == "m" ? RpeUnit::kMeters : RpeUnit::kFrames;
+  if (!derive_loops.empty()) {
+    const double angle = gt_loop_options.max_view_angle_deg;
+    gt_loop_options = ParseDeriveLoops(derive_loops);
+    gt_loop_options.max_view_angle_deg = angle;
+  }
+  SL_CHECK_MSG(loops_path.empty() || !gt_loops_path.empty() || !derive_loops.empty(),
+               "--loops needs ground-truth loops: give --gt-loops FILE or --derive-loops DIST,GAP");
+
+  const Trajectory gt = ReadTrajectory(gt_path, ParseTrajectoryFormat(gt_format));
+  const Trajectory est = ReadTrajectory(est_path, ParseTrajectoryFormat(est_format));
+  if (associate == "auto") {
+    options.association.method = gt.has_timestamps && est.has_timestamps
+                                     ? AssociationMethod::kTimestamp
+                                     : AssociationMethod::kIndex;
+  } else {
+    options.association.method = ParseAssociationMethod(associate);
+  }
+  options.Check();
+
+  const TrajectoryEvaluation e = EvaluateTrajectory(gt, est, options);
+
+  std::optional<std::vector<LoopPair>> gt_loops;
+  if (!gt_loops_path.empty()) gt_loops = ReadLoopPairs(gt_loops_path);
+  if (!derive_loops.empty()) gt_loops = DeriveGtLoops(gt, gt_loop_options);
+  std::optional<LoopPrResult> loops;
+  if (!loops_path.empty())
+    loops = EvaluateLoops(ReadDetections(loops_path), *gt_loops, loop_options);
+
+  // ---- table ----
+  std::cout << fmt::format("estimate     {} ({} poses{})\n", est_path, est.size(),
+                           est.has_rotation ? "" : ", positions only");
+  std::cout << fmt::format("ground truth {} ({} poses)\n", gt_path, gt.size());
+  std::cout << fmt::format("associated   {} pairs by {}\n", e.association.pairs.size(),
+                           ToString(options.association.method));
+  if (e.status != EvaluationStatus::kOk) {
+    std::cout << "no estimate pose matches the ground truth: no trajectory metrics\n";
+  } else {
+    std::cout << fmt::format("alignment    {} ({}), scale {:.6f}, rms residual {} m\n",
+                             ToString(e.alignment.type), ToString(e.alignment.status),
+                             e.alignment.gt_from_est.scale, Num(e.alignment.rms_residual));
+    PrintStats("ATE [m]", e.ate, "m");
+    if (e.rpe) {
+      std::cout << fmt::format("RPE over {} {}:\n", options.rpe.delta, ToString(options.rpe.unit));
+      PrintStats("  translation", e.rpe->translation, "m");
+      if (e.rpe->rotation_deg) {
+        PrintStats("  rotation", *e.rpe->rotation_deg, "deg");
+      } else {
+        std::cout << "  rotation      n/a (positions-only trajectory)\n";
+      }
+    }
+    if (e.kitti) {
+      std::cout << fmt::format("KITTI        t_err {} %  r_err {} deg/100m  ({} segments)\n",
+                               Num(e.kitti->t_err_pct), Num(e.kitti->r_err_deg_per_100m),
+                               e.kitti->num_segments);
+      if (!e.kitti->per_length.empty()) {
+        std::cout << fmt::format("  {:>8}  {:>8}  {:>12}  {:>18}\n", "length_m", "segments",
+                                 "t_err_pct", "r_err_deg_per_100m");
+        for (const auto& p : e.kitti->per_length) {
+          std::cout << fmt::format("  {:>8.0f}  {:>8}  {:>12}  {:>18}\n", p.length, p.count,
+                                   Num(p.t_err_pct), Num(p.r_err_deg_per_100m));
+        }
+      }
+    }
+  }
+  if (gt_loops) std::cout << fmt::format("GT loops     {} pairs\n", gt_loops->size());
+  if (loops) {
+    std::cout << fmt::format(
+        "Loops        {} detections, {} correct, precision {}  recall {}  recall@100%P {}\n",
+        loops->num_detections, loops->true_positives, Num(loops->precision), Num(loops->recall),
+        Num(loops->recall_at_100p));
+  }
+
+  if (!json_path.empty()) {
+    nlohmann::json j = ToJson(e);
+    j["gt_file"] = gt_path;
+    j["est_file"] = est_path;
+    j["association"] = ToString(options.association.method);
+    j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
+    AddLoopKeys(j, loops ? &*loops : nullptr);
+    WriteFileAtomically(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+    std::cout << "wrote " << json_path << "\n";
+  }
+  return 0;
+}
+
+SPARSELOOP_REGISTER_COMMAND("eval",
+                            "trajectory metrics (ATE/RPE/KITTI) and loop P/R vs ground truth",
+                            RunEval);
+
+}  // namespace sparseloop::cli

@@ -1,0 +1,252 @@
+#include "cli/run_output.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/io/atomic_file.h"
+#include "sparseloop/search/search_area.h"
+
+namespace sparseloop::cli {
+namespace {
+
+double NowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+CameraIntrinsics ParseIntrinsics(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      SL_CHECK_MSG(used == item.size(), "--intrinsics: '{}' is not a number", item);
+    } catch (const std::logic_error&) {
+      SL_CHECK_MSG(false, "--intrinsics expects fx,fy,cx,cy; '{}' is not a number", item);
+    }
+  }
+  SL_CHECK_MSG(v.size() == 4, "--intrinsics expects 4 numbers fx,fy,cx,cy, got {}", v.size());
+  CameraIntrinsics c;
+  c.fx = v[0];
+  c.fy = v[1];
+  c.cx = v[2];
+  c.cy = v[3];
+  c.Check();
+  return c;
+}
+
+struct Stats {
+  double median = 0, p90 = 0, p99 = 0, max = 0, mean = 0;
+};
+Stats ComputeStats(std::vector<double> v) {
+  Stats s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  auto q = [&](double p) { return v[std::min(v.size() - 1, static_cast<size_t>(p * v.size()))]; };
+  s.median = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  s.p90 = q(0.9);
+  s.p99 = q(0.99);
+  s.max = v.back();
+  double sum = 0;
+  for (double x : v) sum += x;
+  s.mean = sum / v.size();
+  return s;
+}
+
+const char* PoseKindName(RelativePoseKind k) {
+  switch (k) {
+    case RelativePoseKind::kNone:
+      return "none";
+    case RelativePoseKind::kSE3UnitTranslation:
+      return "se3_unit_translation";
+    case RelativePoseKind::kSE3Metric:
+      return "se3_metric";
+    case RelativePoseKind::kSim3:
+      return "sim3";
+  }
+  return "none";
+}
+
+std::string Fmt(const std::optional<double>& v, int precision = 3) {
+  if (!v) return "n/a";
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(precision) << *v;
+  return os.str();
+}
+
+}  // namespace
+
+void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
+  app.add_option("--dataset", f->dataset, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
+      ->required();
+  app.add_option("--poses", f->poses, "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file)");
+  app.add_option("--intrinsics", f->intrinsics, "fx,fy,cx,cy (required for images:DIR)");
+  app.add_option("-K", f->k, "Informative features kept per keyframe");
+  app.add_option("--search", f->search, "Search area: paper | radius | global")
+      ->check(CLI::IsMember({"paper", "radius", "global"}));
+  app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
+  app.add_option("--out", f->out, "Output directory")->required();
+  app.add_flag("--quiet", f->quiet, "No progress line");
+}
+
+PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
+  PipelineOptions options;
+  if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
+  if (flags.k > 0) options.detector.features.max_features = flags.k;
+  SL_CHECK_MSG(flags.k == -1 || flags.k > 0, "-K must be positive, got {}", flags.k);
+  if (!flags.search.empty()) options.detector.search.strategy = ParseSearchStrategy(flags.search);
+  if (flags.poses.empty() && options.detector.search.strategy != SearchStrategy::kGlobal) {
+    // Without poses only the global search is defined.
+    options.detector.search.strategy = SearchStrategy::kGlobal;
+  }
+  options.Check();
+  return options;
+}
+
+Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
+  DatasetOptions options;
+  if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsics(flags.intrinsics);
+  return OpenDataset(flags.dataset, options);
+}
+
+ProgressLine::ProgressLine(std::string label, bool quiet)
+    : label_(std::move(label)), enabled_(!quiet && isatty(STDERR_FILENO)), start_s_(NowSeconds()) {}
+
+void ProgressLine::Update(size_t done, size_t total, size_t loops) {
+  if (!enabled_) return;
+  const double now = NowSeconds();
+  if (done != total && now - last_s_ < 0.2) return;
+  last_s_ = now;
+  const double rate = done / std::max(now - start_s_, 1e-9);
+  const double eta = rate > 0 ? (total - done) / rate : 0.0;
+  std::fprintf(stderr, "\r%s: %zu/%zu frames (%.0f%%)  %.1f frames/s  %zu loops  eta %.0f s   ",
+               label_.c_str(), done, total, total ? 100.0 * done / total : 100.0, rate, loops, eta);
+  std::fflush(stderr);
+}
+
+void ProgressLine::Finish() {
+  if (enabled_) std::fprintf(stderr, "\n");
+}
+
+void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
+                   const std::vector<bool>* accepted, const LoopTruth* truth) {
+  WriteFileAtomically(path, [&](std::ostream& os) {
+    os << "query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,"
+          "scale\n";
+    os << std::setprecision(10);
+    for (size_t i = 0; i < loops.size(); ++i) {
+      const LoopResult& l = loops[i];
+      const auto& q = l.match_from_query.rotation;
+      const auto& t = l.match_from_query.translation;
+      os << l.query_id << ',' << l.match_id << ',' << l.score << ',' << l.inliers << ','
+         << ToString(l.status) << ',' << PoseKindName(l.pose_kind) << ',';
+      if (accepted) os << ((*accepted)[i] ? 1 : 0);
+      os << ',';
+      if (truth && truth->correct[i]) os << (*truth->correct[i] ? 1 : 0);
+      os << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ','
+         << t.y() << ',' << t.z() << ',' << l.match_from_query.scale << '\n';
+    }
+  });
+}
+
+void WriteTimingsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
+  WriteFileAtomically(path, [&](std::ostream& os) {
+    os << "id,status,candidates,extract_ms,search_ms,match_ms,verify_ms,total_ms\n";
+    os << std::setprecision(6);
+    for (const LoopResult& r : results) {
+      os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ','
+         << r.timings.extract_ms << ',' << r.timings.search_ms << ',' << r.timings.match_ms << ','
+         << r.timings.verify_ms << ',' << r.timings.total_ms << '\n';
+    }
+  });
+}
+
+nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size_t loops,
+                                    double bytes_per_keyframe) {
+  nlohmann::json j;
+  j["keyframes"] = results.size();
+  j["loops"] = loops;
+  j["bytes_per_keyframe"] = bytes_per_keyframe;
+  std::map<std::string, int> counts;
+  for (const auto& r : results) counts[ToString(r.status)]++;
+  j["status_counts"] = counts;
+  std::map<std::string, std::vector<double>> stages;
+  for (const auto& r : results) {
+    stages["extract"].push_back(r.timings.extract_ms);
+    stages["search"].push_back(r.timings.search_ms);
+    stages["match"].push_back(r.timings.match_ms);
+    stages["verify"].push_back(r.timings.verify_ms);
+    stages["total"].push_back(r.timings.total_ms);
+  }
+  for (auto& [name, values] : stages) {
+    const Stats s = ComputeStats(values);
+    j["timing_ms"][name] = {
+        {"median", s.median}, {"p90", s.p90}, {"p99", s.p99}, {"max", s.max}, {"mean", s.mean}};
+  }
+  return j;
+}
+
+void AddLoopTruthJson(nlohmann::json& summary, const LoopTruth& truth,
+                      const std::vector<bool>& accepted) {
+  size_t known = 0, acc_correct = 0, acc_false = 0;
+  for (size_t i = 0; i < truth.correct.size(); ++i) {
+    if (!truth.correct[i]) continue;
+    ++known;
+    if (i < accepted.size() && accepted[i]) (*truth.correct[i] ? acc_correct : acc_false)++;
+  }
+  if (known == 0 && truth.correct.empty() && truth.threshold == 0.0) return;
+  summary["loops_correct"] = truth.num_correct();
+  summary["loops_false"] = truth.num_false();
+  summary["accepted_loops_correct"] = acc_correct;
+  summary["accepted_loops_false"] = acc_false;
+  summary["gt_loop_distance"] = truth.threshold;
+}
+
+void PrintRunSummary(std::ostream& os, const nlohmann::json& s, const TrajectoryEvaluation* raw,
+                     const TrajectoryEvaluation* corrected) {
+  os << "sparseloop run summary\n";
+  os << "  keyframes            " << s.value("keyframes", 0) << "\n";
+  os << "  loops found          " << s.value("loops", 0)
+     << "  (accepted by the pose graph: " << s.value("accepted_loops", 0) << ")\n";
+  if (s.contains("loops_correct")) {
+    os << "  loops correct/false  " << s["loops_correct"] << " / " << s["loops_false"]
+       << "  (GT distance < " << std::setprecision(3) << s["gt_loop_distance"].get<double>()
+       << ")\n";
+  }
+  os << std::fixed << std::setprecision(2);
+  os << "  ms per keyframe      median " << s["timing_ms"]["total"]["median"].get<double>()
+     << ", p90 " << s["timing_ms"]["total"]["p90"].get<double>() << "\n";
+  os << "  bytes per keyframe   " << std::setprecision(0) << s.value("bytes_per_keyframe", 0.0)
+     << "\n";
+  if (s.contains("optimizer")) {
+    os << std::setprecision(4) << "  optimizer            "
+       << s["optimizer"]["status"].get<std::string>() << ", cost "
+       << s["optimizer"]["initial_cost"].get<double>() << " -> "
+       << s["optimizer"]["final_cost"].get<double>() << ", "
+       << s["optimizer"]["iterations"].get<int>() << " iterations\n";
+  }
+  if (raw && corrected) {
+    os << "  metric                         raw      corrected\n";
+    auto row = [&](const char* name, std::optional<double> a, std::optional<double> b) {
+      os << "  " << std::left << std::setw(28) << name << std::right << std::setw(9) << Fmt(a)
+         << "  " << std::setw(9) << Fmt(b) << "\n";
+    };
+    row("ATE rmse (sim3-aligned)", raw->ate.rmse, corrected->ate.rmse);
+    row("ATE max", raw->ate.max, corrected->ate.max);
+    if (raw->kitti && corrected->kitti) {
+      row("KITTI t_err (%)", raw->kitti->t_err_pct, corrected->kitti->t_err_pct);
+      row("KITTI r_err (deg/100 m)", raw->kitti->r_err_deg_per_100m,
+          corrected->kitti->r_err_deg_per_100m);
+    }
+  }
+}
+
+}  // namespace sparseloop::cli

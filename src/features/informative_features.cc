@@ -1,0 +1,286 @@
+#include "sparseloop/features/informative_features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <string>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sparseloop/core/check.h"
+
+namespace sparseloop {
+
+const char* ToString(FeatureRanking ranking) {
+  switch (ranking) {
+    case FeatureRanking::kPopcount:
+      return "popcount";
+    case FeatureRanking::kResponse:
+      return "response";
+    case FeatureRanking::kGridResponse:
+      return "grid";
+  }
+  return "unknown";
+}
+
+FeatureRanking ParseFeatureRanking(const std::string& name) {
+  if (name == "popcount") return FeatureRanking::kPopcount;
+  if (name == "response") return FeatureRanking::kResponse;
+  if (name == "grid") return FeatureRanking::kGridResponse;
+  SL_CHECK_MSG(false, "feature ranking must be popcount, response or grid, got '{}'", name);
+  return FeatureRanking::kResponse;
+}
+
+void GradientMaskOptions::Check() const {
+  SL_CHECK_MSG(block_size >= 4, "gradient.block_size must be >= 4 pixels, got {}", block_size);
+  SL_CHECK_MSG(std::isfinite(threshold_offset) && threshold_offset >= 0,
+               "gradient.threshold_offset must be >= 0, got {}", threshold_offset);
+  SL_CHECK_MSG(dilate_radius >= 0 && dilate_radius <= 64,
+               "gradient.dilate_radius must be in [0, 64] pixels, got {}", dilate_radius);
+}
+
+void FeatureOptions::Check() const {
+  SL_CHECK_MSG(max_features >= 5 && max_features <= 10000,
+               "features.max_features (K) must be in [5, 10000], got {}", max_features);
+  SL_CHECK_MSG(orb_candidates >= max_features,
+               "features.orb_candidates ({}) must be >= max_features ({})", orb_candidates,
+               max_features);
+  SL_CHECK_MSG(orb_levels >= 1 && orb_levels <= 16,
+               "features.orb_levels must be in [1, 16], got {}", orb_levels);
+  SL_CHECK_MSG(orb_scale_factor > 1.0 && orb_scale_factor <= 2.0,
+               "features.orb_scale_factor must be in (1, 2], got {}", orb_scale_factor);
+  SL_CHECK_MSG(orb_fast_threshold >= 1 && orb_fast_threshold <= 255,
+               "features.orb_fast_threshold must be in [1, 255], got {}", orb_fast_threshold);
+  SL_CHECK_MSG(grid_cols >= 1 && grid_rows >= 1, "features.grid must be >= 1x1, got {}x{}",
+               grid_cols, grid_rows);
+  gradient.Check();
+}
+
+size_t KeyframeRecord::Bytes() const {
+  return sizeof(KeyframeRecord) + descriptors.capacity() * sizeof(Descriptor) +
+         keypoints.capacity() * sizeof(CompactKeypoint) + depths.capacity() * sizeof(float);
+}
+
+cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options) {
+  options.Check();
+  SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");
+  const int rows = gray.rows;
+  const int cols = gray.cols;
+  // Gradient magnitude (central differences, L2), clamped to [0, 255].
+  cv::Mat mag(rows, cols, CV_8UC1, cv::Scalar(0));
+  for (int y = 1; y + 1 < rows; ++y) {
+    const uint8_t* up = gray.ptr<uint8_t>(y - 1);
+    const uint8_t* mid = gray.ptr<uint8_t>(y);
+    const uint8_t* down = gray.ptr<uint8_t>(y + 1);
+    uint8_t* out = mag.ptr<uint8_t>(y);
+    for (int x = 1; x + 1 < cols; ++x) {
+      const int gx = (int(mid[x + 1]) - int(mid[x - 1])) / 2;
+      const int gy = (int(down[x]) - int(up[x])) / 2;
+      const int m = static_cast<int>(std::sqrt(float(gx * gx + gy * gy)));
+      out[x] = static_cast<uint8_t>(std::min(m, 255));
+    }
+  }
+  // Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
+  cv::Mat mask(rows, cols, CV_8UC1, cv::Scalar(0));
+  const int b = options.block_size;
+  for (int by = 0; by < rows; by += b) {
+    for (int bx = 0; bx < cols; bx += b) {
+      const int y1 = std::min(by + b, rows);
+      const int x1 = std::min(bx + b, cols);
+      int hist[256] = {0};
+      for (int y = by; y < y1; ++y) {
+        const uint8_t* row = mag.ptr<uint8_t>(y);
+        for (int x = bx; x < x1; ++x) ++hist[row[x]];
+      }
+      const int n = (y1 - by) * (x1 - bx);
+      int acc = 0;
+      int median = 0;
+      for (; median < 256; ++median) {
+        acc += hist[median];
+        if (2 * acc >= n) break;
+      }
+      const double th = median + options.threshold_offset;
+      for (int y = by; y < y1; ++y) {
+        const uint8_t* row = mag.ptr<uint8_t>(y);
+        uint8_t* out = mask.ptr<uint8_t>(y);
+        for (int x = bx; x < x1; ++x) out[x] = row[x] > th ? 255 : 0;
+      }
+    }
+  }
+  if (options.dilate_radius > 0) {
+    const int k = 2 * options.dilate_radius + 1;
+    cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k)));
+  }
+  return mask;
+}
+
+std::vector<int> RankFeatures(const std::vector<cv::KeyPoint>& keypoints,
+                              const std::vector<Descriptor>& descriptors, FeatureRanking ranking,
+                              int k, cv::Size image_size, int grid_cols, int grid_rows) {
+  SL_CHECK(keypoints.size() == descriptors.size());
+  SL_CHECK(k >= 0);
+  std::vector<int> order(keypoints.size());
+  std::iota(order.begin(), order.end(), 0);
+  // Ties broken by index so that the ranking is a total order (deterministic).
+  auto by_response = [&](int a, int b) {
+    if (keypoints[a].response != keypoints[b].response)
+      return keypoints[a].response > keypoints[b].response;
+    return a < b;
+  };
+  switch (ranking) {
+    case FeatureRanking::kPopcount: {
+      std::vector<int> pc(descriptors.size());
+      for (size_t i = 0; i < descriptors.size(); ++i) pc[i] = Popcount(descriptors[i]);
+      std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+        if (pc[a] != pc[b]) return pc[a] > pc[b];
+        return by_response(a, b);
+      });
+      break;
+    }
+    case FeatureRanking::kResponse:
+      std::sort(order.begin(), order.end(), by_response);
+      break;
+    case FeatureRanking::kGridResponse: {
+      std::sort(order.begin(), order.end(), by_response);
+      const int cells = grid_cols * grid_rows;
+      std::vector<std::vector<int>> per_cell(cells);
+      for (int i : order) {
+        const auto& p = keypoints[i].pt;
+        int cx = std::clamp(int(p.x * grid_cols / std::max(1, image_size.width)), 0, grid_cols - 1);
+        int cy =
+            std::clamp(int(p.y * grid_rows / std::max(1, image_size.height)), 0, grid_rows - 1);
+        per_cell[cy * grid_cols + cx].push_back(i);
+      }
+      std::vector<int> out;
+      for (size_t round = 0; out.size() < order.size(); ++round) {
+        for (int c = 0; c < cells; ++c) {
+          if (round < per_cell[c].size()) out.push_back(per_cell[c][round]);
+        }
+      }
+      order = std::move(out);
+      break;
+    }
+  }
+  if (static_cast<int>(order.size()) > k) order.resize(k);
+  return order;
+}
+
+namespace {
+
+std::vector<cv::Point2f> Undistort(const std::vector<cv::Point2f>& pixels,
+                                   const CameraIntrinsics& intr) {
+  std::vector<cv::Point2f> out;
+  if (pixels.empty()) return out;
+  if (intr.distortion_model == DistortionModel::kNone) {
+    out.reserve(pixels.size());
+    for (const auto& p : pixels)
+      out.emplace_back(float((p.x - intr.cx) / intr.fx), float((p.y - intr.cy) / intr.fy));
+    return out;
+  }
+  cv::Matx33d k(intr.fx, 0, intr.cx, 0, intr.fy, intr.cy, 0, 0, 1);
+  cv::Mat dist(intr.distortion, true);
+  if (intr.distortion_model == DistortionModel::kEquidistant) {
+    cv::fisheye::undistortPoints(pixels, out, k, dist);
+  } else {
+    // Many iterations: the default 5 do not converge near the corners of strong (EuRoC-like,
+    // k1 = -0.28) radial distortion.
+    cv::undistortPoints(
+        pixels, out, k, dist, cv::noArray(), cv::noArray(),
+        cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-12));
+  }
+  return out;
+}
+
+}  // namespace
+
+void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions& options,
+                                KeyframeRecord* record) {
+  options.Check();
+  SL_CHECK_MSG(record != nullptr, "record must not be null");
+  SL_CHECK_MSG(input.image != nullptr && !input.image->empty(), "image must not be empty");
+  SL_CHECK_MSG(input.image->type() == CV_8UC1, "image must be 8-bit grayscale (CV_8UC1)");
+  SL_CHECK_MSG(input.intrinsics != nullptr, "intrinsics are required");
+  input.intrinsics->Check();
+  const cv::Mat& image = *input.image;
+  const cv::Size size = image.size();
+
+  // Extraction area: caller's mask, else dilated mapped pixels, else semi-dense selection.
+  cv::Mat mask;
+  if (input.mask != nullptr && !input.mask->empty()) {
+    SL_CHECK_MSG(input.mask->size() == size && input.mask->type() == CV_8UC1,
+                 "mask must be CV_8UC1 of the image size");
+    mask = *input.mask;
+  } else if (input.mapped_pixels != nullptr && !input.mapped_pixels->empty()) {
+    mask = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    const int r = std::max(1, options.gradient.dilate_radius);
+    for (const auto& p : *input.mapped_pixels) {
+      cv::rectangle(mask, cv::Point(int(p.x) - r, int(p.y) - r),
+                    cv::Point(int(p.x) + r, int(p.y) + r), cv::Scalar(255), cv::FILLED);
+    }
+  } else if (options.use_gradient_mask) {
+    mask = HighGradientMask(image, options.gradient);
+  }
+  if (input.mapped_depths != nullptr) {
+    SL_CHECK_MSG(input.mapped_pixels != nullptr &&
+                     input.mapped_pixels->size() == input.mapped_depths->size(),
+                 "mapped_depths needs mapped_pixels of the same length");
+  }
+
+  auto orb = cv::ORB::create(options.orb_candidates, static_cast<float>(options.orb_scale_factor),
+                             options.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                             options.orb_fast_threshold);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat desc;
+  orb->detectAndCompute(image, mask, keypoints, desc);
+  std::vector<Descriptor> all(keypoints.size());
+  for (size_t i = 0; i < keypoints.size(); ++i) std::memcpy(all[i].data(), desc.ptr(int(i)), 32);
+
+  const std::vector<int> keep = RankFeatures(keypoints, all, options.ranking, options.max_features,
+                                             size, options.grid_cols, options.grid_rows);
+  std::vector<cv::Point2f> pixels;
+  pixels.reserve(keep.size());
+  for (int i : keep) pixels.push_back(keypoints[i].pt);
+  const std::vector<cv::Point2f> normalised = Undistort(pixels, *input.intrinsics);
+
+  record->descriptors.clear();
+  record->keypoints.clear();
+  record->depths.clear();
+  record->descriptors.reserve(keep.size());
+  record->keypoints.reserve(keep.size());
+  for (size_t j = 0; j < keep.size(); ++j) {
+    const auto& kp = keypoints[keep[j]];
+    record->descriptors.push_back(all[keep[j]]);
+    CompactKeypoint c;
+    c.x = normalised[j].x;
+    c.y = normalised[j].y;
+    c.angle = static_cast<uint16_t>(std::lround(std::clamp(kp.angle, 0.0f, 359.99f) * 100.0f));
+    c.octave = static_cast<uint8_t>(std::clamp(kp.octave, 0, 255));
+    record->keypoints.push_back(c);
+  }
+  record->focal_px = static_cast<float>(0.5 * (input.intrinsics->fx + input.intrinsics->fy));
+
+  // Depth of a kept keypoint: the nearest mapped pixel within 3 px that has a depth.
+  if (input.mapped_depths != nullptr && !input.mapped_depths->empty()) {
+    const auto& mp = *input.mapped_pixels;
+    const auto& md = *input.mapped_depths;
+    record->depths.assign(keep.size(), 0.0f);
+    for (size_t j = 0; j < keep.size(); ++j) {
+      float best = 9.0f;  // squared pixel radius
+      for (size_t m = 0; m < mp.size(); ++m) {
+        const float dx = mp[m].x - pixels[j].x;
+        const float dy = mp[m].y - pixels[j].y;
+        const float d2 = dx * dx + dy * dy;
+        if (d2 <= best && md[m] > 0) {
+          best = d2;
+          record->depths[j] = md[m];
+        }
+      }
+    }
+    record->depths.shrink_to_fit();
+  }
+}
+
+}  // namespace sparseloop

@@ -1,0 +1,284 @@
+#include "sparseloop/loop/loop_detector.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+
+namespace sparseloop {
+
+const char* ToString(LoopStatus status) {
+  switch (status) {
+    case LoopStatus::kDetected:
+      return "detected";
+    case LoopStatus::kSkipped:
+      return "skipped";
+    case LoopStatus::kNoFeatures:
+      return "no_features";
+    case LoopStatus::kNoCandidates:
+      return "no_candidates";
+    case LoopStatus::kTooFewMatches:
+      return "too_few_matches";
+    case LoopStatus::kTooFewInliers:
+      return "too_few_inliers";
+    case LoopStatus::kRejectedByConsistency:
+      return "rejected_by_consistency";
+    case LoopStatus::kRejectedByTemporal:
+      return "rejected_by_temporal";
+  }
+  return "unknown";
+}
+
+void LoopDetector::Options::Check() const {
+  features.Check();
+  search.Check();
+  match.Check();
+  verify.Check();
+  SL_CHECK_MSG(check_every >= 1, "check_every must be >= 1 keyframe, got {}", check_every);
+  SL_CHECK_MSG(min_matches >= 5, "min_matches must be >= 5, got {}", min_matches);
+  SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
+  SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
+               "min_path_ratio must be >= 0, got {}", min_path_ratio);
+  SL_CHECK_MSG(consistency_base_deg >= 0 && consistency_per_keyframe_deg >= 0 &&
+                   consistency_max_deg >= consistency_base_deg,
+               "consistency tolerances must be >= 0 and max >= base (got {}, {}, {})",
+               consistency_base_deg, consistency_per_keyframe_deg, consistency_max_deg);
+  SL_CHECK_MSG(min_inlier_fraction_of_k >= 0 && min_inlier_fraction_of_k <= 1,
+               "min_inlier_fraction_of_k must be in [0, 1], got {}", min_inlier_fraction_of_k);
+  SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
+}
+
+int LoopDetector::Options::EffectiveMinInliers() const {
+  return std::max(verify.min_inliers,
+                  static_cast<int>(std::ceil(min_inlier_fraction_of_k * features.max_features)));
+}
+
+LoopDetector::LoopDetector(Options options)
+    : options_(std::move(options)), search_([&] {
+        options_.Check();
+        return options_.search;
+      }()) {
+  verify_ = options_.verify;
+  verify_.seed = options_.seed;
+  verify_.min_inliers = options_.EffectiveMinInliers();
+}
+
+const KeyframeRecord& LoopDetector::record(int64_t id) const {
+  auto it = index_of_.find(id);
+  SL_CHECK_MSG(it != index_of_.end(), "unknown keyframe id {}", id);
+  return records_[it->second];
+}
+
+size_t LoopDetector::StoredBytes() const {
+  size_t total = 0;
+  for (const auto& r : records_) total += r.Bytes();
+  return total;
+}
+
+LoopResult LoopDetector::Process(const KeyframeInput& input) {
+  Timer total;
+  LoopResult result;
+  result.query_id = input.id;
+  SL_CHECK_MSG(!index_of_.count(input.id), "keyframe id {} was already processed", input.id);
+  SL_CHECK_MSG(
+      input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
+      "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),
+      input.mapped_pixels.size());
+  if (!input.world_from_cam) {
+    SL_CHECK_MSG(options_.search.strategy == SearchStrategy::kGlobal,
+                 "keyframe {} has no pose: only the global search strategy works without poses",
+                 input.id);
+  }
+
+  // 1. Informative features.
+  Timer stage;
+  KeyframeRecord rec;
+  rec.id = input.id;
+  rec.timestamp = input.timestamp;
+  rec.has_pose = input.world_from_cam.has_value();
+  if (rec.has_pose) rec.world_from_cam = *input.world_from_cam;
+  FeatureInput fin;
+  fin.image = &input.image;
+  fin.intrinsics = &input.intrinsics;
+  if (!input.high_gradient_mask.empty()) fin.mask = &input.high_gradient_mask;
+  if (!input.mapped_pixels.empty()) fin.mapped_pixels = &input.mapped_pixels;
+  if (!input.mapped_depths.empty()) fin.mapped_depths = &input.mapped_depths;
+  ExtractInformativeFeatures(fin, options_.features, &rec);
+  result.timings.extract_ms = stage.ElapsedMs();
+
+  // 2. Store.
+  const size_t index = records_.size();
+  double path = 0.0;
+  if (index > 0) {
+    path = path_length_.back();
+    const auto& prev = records_.back();
+    if (prev.has_pose && rec.has_pose)
+      path += (rec.world_from_cam.translation - prev.world_from_cam.translation).norm();
+  }
+  const Eigen::Vector3d position =
+      rec.has_pose ? rec.world_from_cam.translation : Eigen::Vector3d::Zero();
+  any_pose_ |= rec.has_pose;
+  any_missing_pose_ |= !rec.has_pose;
+  index_of_[rec.id] = index;
+  path_length_.push_back(path);
+  search_.Add(rec.id, position);
+  records_.push_back(std::move(rec));
+  const KeyframeRecord& query = records_.back();
+
+  if ((index + 1) % static_cast<size_t>(options_.check_every) != 0) {
+    result.status = LoopStatus::kSkipped;
+    result.timings.total_ms = total.ElapsedMs();
+    return result;
+  }
+  if (query.size() < 5) {
+    result.status = LoopStatus::kNoFeatures;
+    result.timings.total_ms = total.ElapsedMs();
+    return result;
+  }
+
+  // 3. Search area, then the scale-free "far along the path" filter.
+  stage.Restart();
+  const SearchAreaResult area = search_.Query(query.id);
+  std::vector<int64_t> candidates;
+  candidates.reserve(area.candidates.size());
+  for (int64_t id : area.candidates) {
+    const size_t ci = index_of_.at(id);
+    const auto& c = records_[ci];
+    if (options_.min_path_ratio > 0 && query.has_pose && c.has_pose) {
+      const double chord = (query.world_from_cam.translation - c.world_from_cam.translation).norm();
+      const double along = path_length_[index] - path_length_[ci];
+      if (along < options_.min_path_ratio * chord) continue;
+    }
+    candidates.push_back(id);
+  }
+  result.timings.search_ms = stage.ElapsedMs();
+
+  SearchAndVerify(query, std::move(candidates), &result);
+  result.timings.total_ms = total.ElapsedMs();
+  return result;
+}
+
+LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
+                                      const std::vector<int64_t>& candidate_ids) {
+  Timer total;
+  LoopResult result;
+  result.query_id = query.id;
+  SearchAndVerify(query, candidate_ids, &result);
+  result.timings.total_ms = total.ElapsedMs();
+  return result;
+}
+
+void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
+                                   LoopResult* result) {
+  result->candidates = static_cast<int>(candidates.size());
+  if (candidates.empty()) {
+    result->status = LoopStatus::kNoCandidates;
+    return;
+  }
+  // 4. Hamming matching against every candidate; rank by match count, then score, then id.
+  Timer stage;
+  struct Ranked {
+    size_t index;
+    std::vector<DescriptorMatch> matches;
+    double score;
+  };
+  std::vector<Ranked> ranked;
+  int best_count = 0;
+  int64_t best_id = -1;
+  for (int64_t id : candidates) {
+    const size_t ci = index_of_.at(id);
+    auto m = MatchDescriptors(query.descriptors, records_[ci].descriptors, options_.match);
+    const int n = static_cast<int>(m.size());
+    if (n > best_count) {
+      best_count = n;
+      best_id = id;
+    }
+    if (n < options_.min_matches) continue;
+    const double s = MatchScore(m, options_.match.max_distance);
+    ranked.push_back({ci, std::move(m), s});
+  }
+  std::sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
+    if (a.matches.size() != b.matches.size()) return a.matches.size() > b.matches.size();
+    if (a.score != b.score) return a.score > b.score;
+    return a.index < b.index;
+  });
+  result->timings.match_ms = stage.ElapsedMs();
+  if (ranked.empty()) {
+    result->status = LoopStatus::kTooFewMatches;
+    result->match_id = best_id;
+    result->matches = best_count;
+    return;
+  }
+
+  // 5. Geometric verification of the best few, then the pose-prior consistency check.
+  stage.Restart();
+  const size_t query_index = index_of_.at(query.id);
+  const int64_t since_loop =
+      static_cast<int64_t>(query_index) - static_cast<int64_t>(last_loop_index_);
+  const double tolerance_deg =
+      std::min(options_.consistency_max_deg,
+               options_.consistency_base_deg +
+                   options_.consistency_per_keyframe_deg * static_cast<double>(since_loop));
+  LoopStatus status = LoopStatus::kTooFewInliers;
+  bool have_best = false;
+  const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
+  for (int r = 0; r < n_verify; ++r) {
+    const auto& cand = ranked[r];
+    const KeyframeRecord& match = records_[cand.index];
+    VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
+    LoopResult trial = *result;
+    trial.match_id = match.id;
+    trial.matches = static_cast<int>(cand.matches.size());
+    trial.inliers = v.inliers;
+    trial.score = static_cast<double>(v.inliers) / options_.features.max_features;
+    trial.method = v.method;
+    trial.pose_kind = v.pose_kind;
+    trial.match_from_query = v.match_from_query;
+    LoopStatus trial_status = LoopStatus::kTooFewInliers;
+    if (v.success) {
+      trial_status = LoopStatus::kDetected;
+      if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {
+        const Eigen::Quaterniond prior =
+            match.world_from_cam.rotation.conjugate() * query.world_from_cam.rotation;
+        trial.rotation_error_vs_prior_deg =
+            RotationAngle(prior, v.match_from_query.rotation) * 180.0 / M_PI;
+        if (options_.check_consistency && trial.rotation_error_vs_prior_deg > tolerance_deg)
+          trial_status = LoopStatus::kRejectedByConsistency;
+      }
+      if (trial_status == LoopStatus::kDetected && options_.temporal_check) {
+        const bool confirmed =
+            last_verified_ &&
+            std::llabs(static_cast<int64_t>(last_verified_->second) -
+                       static_cast<int64_t>(cand.index)) <= options_.temporal_window;
+        last_verified_ = std::make_pair(query_index, cand.index);
+        if (!confirmed) trial_status = LoopStatus::kRejectedByTemporal;
+      }
+    }
+    // Keep the most informative outcome: detected > rejected > too few inliers (best inliers).
+    auto rank = [](LoopStatus s) {
+      return s == LoopStatus::kDetected ? 3
+             : (s == LoopStatus::kRejectedByConsistency || s == LoopStatus::kRejectedByTemporal)
+                 ? 2
+                 : 1;
+    };
+    if (!have_best || rank(trial_status) > rank(status) ||
+        (rank(trial_status) == rank(status) && trial.inliers > result->inliers)) {
+      const StageTimings keep = result->timings;
+      *result = trial;
+      result->timings = keep;
+      status = trial_status;
+      have_best = true;
+    }
+    if (status == LoopStatus::kDetected) break;
+  }
+  result->status = status;
+  result->timings.verify_ms = stage.ElapsedMs();
+  if (status == LoopStatus::kDetected) {
+    last_loop_index_ = static_cast<int64_t>(query_index);
+    search_.OnLoopAccepted(query.id, result->match_id);
+  }
+}
+
+}  // namespace sparseloop

@@ -1,0 +1,318 @@
+#include "sparseloop/pipeline/pipeline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+#include "sparseloop/map/map_database.h"
+#include "sparseloop/posegraph/interpolation.h"
+
+namespace sparseloop {
+
+void PipelineOptions::Check() const {
+  detector.Check();
+  optimizer.Check();
+  odometry.Check();
+  direction_loop.Check();
+  SL_CHECK_MSG(loop_translation_sigma_steps > 0, "loop_translation_sigma_steps must be > 0");
+  SL_CHECK_MSG(loop_rotation_sigma_rad > 0, "loop_rotation_sigma_rad must be > 0");
+  SL_CHECK_MSG(loop_scale_sigma > 0, "loop_scale_sigma must be > 0");
+  SL_CHECK_MSG(raw_association_max_dt > 0, "raw_association_max_dt must be > 0");
+}
+
+Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, double max_dt,
+                                 const std::filesystem::path& raw_path) {
+  Trajectory out;
+  out.has_rotation = raw.has_rotation;
+  out.has_timestamps = raw.has_timestamps;
+  const bool by_time = raw.has_timestamps && dataset.kind != "kitti" && dataset.kind != "images";
+  if (!by_time) {
+    // Index association: raw pose with frame == dataset frame index.
+    std::unordered_map<int64_t, size_t> by_frame;
+    for (size_t i = 0; i < raw.poses.size(); ++i) by_frame[raw.poses[i].frame] = i;
+    for (const auto& f : dataset.frames) {
+      auto it = by_frame.find(f.index);
+      if (it == by_frame.end()) {
+        throw FileError(raw_path.string(), 0,
+                        fmt::format("a raw pose for every image ({} images, frame {} has none)",
+                                    dataset.frames.size(), f.index),
+                        fmt::format("{} poses", raw.poses.size()));
+      }
+      StampedPose p = raw.poses[it->second];
+      p.frame = f.index;
+      p.timestamp = f.timestamp;
+      out.poses.push_back(p);
+    }
+    return out;
+  }
+  size_t j = 0;
+  for (const auto& f : dataset.frames) {
+    while (j + 1 < raw.poses.size() && std::abs(raw.poses[j + 1].timestamp - f.timestamp) <=
+                                           std::abs(raw.poses[j].timestamp - f.timestamp)) {
+      ++j;
+    }
+    if (raw.poses.empty() || std::abs(raw.poses[j].timestamp - f.timestamp) > max_dt) {
+      throw FileError(raw_path.string(), 0,
+                      fmt::format("a raw pose within {} s of every image timestamp", max_dt),
+                      fmt::format("none for image {} at t={:.6f}", f.index, f.timestamp));
+    }
+    StampedPose p = raw.poses[j];
+    p.frame = f.index;
+    out.poses.push_back(p);
+  }
+  return out;
+}
+
+MappedPixels ReadMappedPixels(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw FileError(path.string(), 0, "a readable mapped-pixels file");
+  MappedPixels out;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ss(line);
+    double u, v, d;
+    std::string extra;
+    if (!(ss >> u >> v >> d) || (ss >> extra)) {
+      throw FileError(path.string(), line_no, "3 numbers 'u v depth'", "'" + line + "'");
+    }
+    if (!std::isfinite(u) || !std::isfinite(v) || !std::isfinite(d)) {
+      throw FileError(path.string(), line_no, "finite numbers", "'" + line + "'");
+    }
+    out.pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
+    out.depths.push_back(static_cast<float>(d));
+  }
+  return out;
+}
+
+LoopConstraint MakeLoopConstraint(const LoopResult& loop, const Sim3d& raw_world_from_query,
+                                  const Sim3d& raw_world_from_match, double local_step_length,
+                                  const PipelineOptions& options) {
+  const double weight = std::clamp(loop.score, 0.1, 1.0);
+  if (loop.pose_kind == RelativePoseKind::kSE3UnitTranslation) {
+    DirectionLoopOptions dir = options.direction_loop;
+    dir.weight *= weight;
+    return MakeLoopConstraintFromDirection(loop.query_id, loop.match_id, raw_world_from_query,
+                                           raw_world_from_match, loop.match_from_query.rotation,
+                                           loop.match_from_query.translation.normalized(),
+                                           local_step_length, dir);
+  }
+  SL_CHECK_MSG(
+      loop.pose_kind == RelativePoseKind::kSim3 || loop.pose_kind == RelativePoseKind::kSE3Metric,
+      "loop {} -> {} carries no relative pose", loop.query_id, loop.match_id);
+  LoopConstraint c;
+  c.query_id = loop.query_id;
+  c.match_id = loop.match_id;
+  c.match_from_query = loop.match_from_query;
+  c.has_scale = loop.pose_kind == RelativePoseKind::kSim3;
+  c.information =
+      LoopInformation(std::max(options.loop_translation_sigma_steps * local_step_length, 1e-6),
+                      options.loop_rotation_sigma_rad, options.loop_scale_sigma);
+  if (!c.has_scale) c.information(6, 6) = 0.0;
+  c.weight = weight;
+  return c;
+}
+
+size_t LoopTruth::num_correct() const {
+  return std::count(correct.begin(), correct.end(), std::optional<bool>(true));
+}
+size_t LoopTruth::num_false() const {
+  return std::count(correct.begin(), correct.end(), std::optional<bool>(false));
+}
+
+LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Trajectory& gt,
+                                 const Trajectory& raw_matched, double threshold, double max_dt) {
+  LoopTruth truth;
+  if (threshold <= 0) {
+    const auto dist = gt.CumulativeDistances();
+    threshold = dist.empty() ? 1.0 : std::min(0.05 * dist.back(), 10.0);
+  }
+  truth.threshold = threshold;
+  std::unordered_map<int64_t, size_t> gt_by_frame;
+  for (size_t i = 0; i < gt.poses.size(); ++i) gt_by_frame[gt.poses[i].frame] = i;
+  std::unordered_map<int64_t, double> time_of_frame;
+  for (const auto& p : raw_matched.poses) time_of_frame[p.frame] = p.timestamp;
+  auto gt_position = [&](int64_t frame) -> std::optional<Eigen::Vector3d> {
+    if (gt.has_timestamps && time_of_frame.count(frame)) {
+      const double t = time_of_frame.at(frame);
+      auto it = std::lower_bound(gt.poses.begin(), gt.poses.end(), t,
+                                 [](const StampedPose& p, double v) { return p.timestamp < v; });
+      const StampedPose* best = nullptr;
+      if (it != gt.poses.end()) best = &*it;
+      if (it != gt.poses.begin() &&
+          (best == nullptr || std::abs((it - 1)->timestamp - t) < std::abs(best->timestamp - t))) {
+        best = &*(it - 1);
+      }
+      if (best && std::abs(best->timestamp - t) <= max_dt) return best->world_from_cam.translation;
+      return std::nullopt;
+    }
+    auto it = gt_by_frame.find(frame);
+    if (it == gt_by_frame.end()) return std::nullopt;
+    return gt.poses[it->second].world_from_cam.translation;
+  };
+  for (const LoopResult& l : loops) {
+    const auto q = gt_position(l.query_id);
+    const auto m = gt_position(l.match_id);
+    if (q && m) {
+      truth.correct.push_back((*q - *m).norm() < threshold);
+    } else {
+      truth.correct.push_back(std::nullopt);
+    }
+  }
+  return truth;
+}
+
+namespace {
+
+StoredKeyframe ToStored(const KeyframeRecord& r, int64_t session) {
+  StoredKeyframe s;
+  s.session = session;
+  s.id = r.id;
+  s.timestamp = r.timestamp;
+  s.raw_world_from_cam = r.world_from_cam;
+  s.num_features = static_cast<int>(r.size());
+  s.descriptors.resize(r.size() * 32);
+  if (!r.descriptors.empty())
+    std::memcpy(s.descriptors.data(), r.descriptors.data(), r.size() * 32);
+  for (const auto& k : r.keypoints) {
+    s.keypoints.push_back(k.x);
+    s.keypoints.push_back(k.y);
+  }
+  s.depths = r.depths;
+  return s;
+}
+
+double LocalStep(const Trajectory& raw, size_t i) {
+  const size_t a = i > 0 ? i - 1 : 0;
+  const size_t b = i > 0 ? i : std::min<size_t>(1, raw.poses.size() - 1);
+  return (raw.poses[b].world_from_cam.translation - raw.poses[a].world_from_cam.translation).norm();
+}
+
+}  // namespace
+
+PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
+                           const PipelineOptions& options,
+                           const PipelineProgressCallback& progress) {
+  options.Check();
+  SL_CHECK_MSG(raw.poses.size() == dataset.frames.size(),
+               "raw trajectory has {} poses for {} frames; use MatchRawPosesToFrames",
+               raw.poses.size(), dataset.frames.size());
+  PipelineResult result;
+  result.raw = raw;
+  LoopDetector detector(options.detector);
+
+  std::unique_ptr<MapDatabase> map;
+  int64_t session = 0;
+  if (!options.map_path.empty()) {
+    map = MapDatabase::Open(options.map_path);
+    session = map->BeginSession(options.session_label);
+  }
+
+  const auto mapped_dir = dataset.root / "mapped";
+  const bool have_mapped = options.use_mapped_pixels && std::filesystem::is_directory(mapped_dir);
+  std::vector<size_t> keyframe_rows;  // row in `raw` of each processed keyframe
+  Timer detect_timer;
+  size_t bytes = 0;
+  for (size_t i = 0; i < dataset.frames.size(); ++i) {
+    const DatasetFrame& frame = dataset.frames[i];
+    KeyframeInput input;
+    input.id = frame.index;
+    input.timestamp = frame.timestamp;
+    input.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+    if (input.image.empty()) {
+      if (!options.skip_unreadable_frames) {
+        throw FileError(frame.image_path.string(), 0, "a readable image");
+      }
+      Logger().warn("skipping frame {}: cannot read image {}", frame.index,
+                    frame.image_path.string());
+      ++result.skipped_frames;
+      continue;
+    }
+    input.intrinsics = dataset.intrinsics;
+    input.world_from_cam = Sim3d(raw.poses[i].world_from_cam);
+    if (have_mapped) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(frame.index));
+      const auto path = mapped_dir / name;
+      if (std::filesystem::exists(path)) {
+        MappedPixels m = ReadMappedPixels(path);
+        input.mapped_pixels = std::move(m.pixels);
+        input.mapped_depths = std::move(m.depths);
+      }
+    }
+    LoopResult r = detector.Process(input);
+    keyframe_rows.push_back(i);
+    result.keyframe_frames.push_back(frame.index);
+    const KeyframeRecord& record = detector.record(frame.index);
+    bytes += record.Bytes();
+    if (map) map->PutKeyframe(ToStored(record, session));
+    if (r.detected()) result.loops.push_back(r);
+    result.frame_results.push_back(std::move(r));
+    if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
+  }
+  result.detect_seconds = detect_timer.ElapsedMs() / 1000.0;
+  if (!keyframe_rows.empty()) result.bytes_per_keyframe = double(bytes) / keyframe_rows.size();
+
+  // Pose graph over the processed keyframes.
+  std::vector<int64_t> ids;
+  std::vector<Sim3d> poses;
+  std::unordered_map<int64_t, size_t> row_of_id;
+  for (size_t row : keyframe_rows) {
+    row_of_id[dataset.frames[row].index] = row;
+    ids.push_back(dataset.frames[row].index);
+    poses.emplace_back(raw.poses[row].world_from_cam);
+  }
+  result.corrected = raw;
+  result.loop_accepted.assign(result.loops.size(), false);
+  if (ids.size() < 2) return result;
+  PoseGraph graph = BuildOdometryGraph(ids, poses, options.vertex_type, options.odometry);
+  for (const LoopResult& loop : result.loops) {
+    const size_t q = row_of_id.at(loop.query_id);
+    const size_t m = row_of_id.at(loop.match_id);
+    graph.AddLoop(MakeLoopConstraint(loop, Sim3d(raw.poses[q].world_from_cam),
+                                     Sim3d(raw.poses[m].world_from_cam), LocalStep(raw, q),
+                                     options));
+  }
+  if (!result.loops.empty()) {
+    result.optimizer = graph.Optimize(options.optimizer);
+  } else {
+    result.optimizer.status = PoseGraphStatus::kNothingToDo;
+    result.optimizer.num_vertices = graph.num_vertices();
+    result.optimizer.num_edges = graph.edges().size();
+  }
+  std::vector<bool> rejected(result.loops.size(), false);
+  for (size_t idx : result.optimizer.rejected_loops) rejected.at(idx) = true;
+  for (size_t k = 0; k < result.loops.size(); ++k) result.loop_accepted[k] = !rejected[k];
+  if (map) {
+    for (size_t k = 0; k < result.loops.size(); ++k) {
+      const LoopResult& l = result.loops[k];
+      map->PutLoop({session, l.query_id, session, l.match_id, l.inliers, l.score,
+                    l.match_from_query, result.loop_accepted[k]});
+    }
+    map->Flush();
+  }
+
+  // Corrected poses: keyframes from the graph, every raw pose through the interpolated correction.
+  std::vector<StampedSim3> raw_kf, corrected_kf, raw_all;
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const double t = raw.poses[keyframe_rows[k]].timestamp;
+    raw_kf.push_back({t, poses[k]});
+    corrected_kf.push_back({t, graph.Pose(ids[k])});
+  }
+  for (const auto& p : raw.poses) raw_all.push_back({p.timestamp, Sim3d(p.world_from_cam)});
+  const auto corrected_all = CorrectFramePoses(raw_kf, corrected_kf, raw_all);
+  for (size_t i = 0; i < raw.poses.size(); ++i) {
+    result.corrected.poses[i].world_from_cam = corrected_all[i].world_from_cam.ToRigid();
+  }
+  return result;
+}
+
+}  // namespace sparseloop

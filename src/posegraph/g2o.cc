@@ -1,0 +1,301 @@
+#include "sparseloop/posegraph/g2o.h"
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/core/quaternion.h"
+
+namespace sparseloop {
+namespace {
+
+enum class Dim { kUnknown, k2, k3 };
+
+Eigen::Quaterniond FromRollPitchYaw(double roll, double pitch, double yaw) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                            Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()));
+}
+
+Eigen::Quaterniond FromYaw(double yaw) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
+}
+
+double YawOf(const Eigen::Quaterniond& q) {
+  return std::atan2(2.0 * (q.w() * q.z() + q.x() * q.y()),
+                    1.0 - 2.0 * (q.y() * q.y() + q.z() * q.z()));
+}
+
+// Upper-triangular 6x6 -> symmetric, in [translation, rotation] order.
+Eigen::Matrix<double, 6, 6> UpperToSymmetric(const std::vector<double>& v) {
+  Eigen::Matrix<double, 6, 6> m;
+  size_t k = 0;
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) m(r, c) = m(c, r) = v[k++];
+  return m;
+}
+
+Matrix7d Embed6(const Eigen::Matrix<double, 6, 6>& info6, double rotation_factor) {
+  Matrix7d info = Matrix7d::Zero();
+  info.topLeftCorner<6, 6>() = info6;
+  info.block<3, 3>(0, 3) *= rotation_factor;
+  info.block<3, 3>(3, 0) *= rotation_factor;
+  info.block<3, 3>(3, 3) *= rotation_factor * rotation_factor;
+  info(6, 6) = 1.0;  // scale residual is identically zero in SE(3) graphs
+  return info;
+}
+
+struct Parser {
+  std::string name;
+  int line_no = 0;
+  std::istringstream fields;
+
+  [[noreturn]] void Fail(const std::string& expected, const std::string& got) const {
+    throw FileError(name, line_no, expected, got);
+  }
+  double Number(const char* what) {
+    std::string token;
+    if (!(fields >> token)) Fail(fmt::format("a number ({})", what), "end of line");
+    try {
+      size_t used = 0;
+      const double v = std::stod(token, &used);
+      if (used != token.size() || !std::isfinite(v)) throw std::invalid_argument(token);
+      return v;
+    } catch (const std::exception&) {
+      Fail(fmt::format("a number ({})", what), "'" + token + "'");
+    }
+  }
+  int64_t Id(const char* what) {
+    std::string token;
+    if (!(fields >> token)) Fail(fmt::format("an integer id ({})", what), "end of line");
+    try {
+      size_t used = 0;
+      const long long v = std::stoll(token, &used);
+      if (used != token.size()) throw std::invalid_argument(token);
+      return v;
+    } catch (const std::exception&) {
+      Fail(fmt::format("an integer id ({})", what), "'" + token + "'");
+    }
+  }
+  void End() {
+    std::string extra;
+    if (fields >> extra) Fail("end of line", "'" + extra + "'");
+  }
+  // Separate statements: the evaluation order of constructor arguments is unspecified.
+  Eigen::Vector3d Translation() {
+    const double x = Number("x");
+    const double y = Number("y");
+    const double z = Number("z");
+    return {x, y, z};
+  }
+  Eigen::Quaterniond Quaternion() {
+    const double qx = Number("qx"), qy = Number("qy"), qz = Number("qz"), qw = Number("qw");
+    const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
+    if (std::abs(norm - 1.0) > 1e-2) Fail("a unit quaternion", fmt::format("norm {}", norm));
+    return QuaternionFromXyzw(qx, qy, qz, qw).normalized();
+  }
+  std::vector<double> Numbers(int count, const char* what) {
+    std::vector<double> v(count);
+    for (int i = 0; i < count; ++i) v[i] = Number(what);
+    return v;
+  }
+};
+
+}  // namespace
+
+PoseGraph ReadG2o(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw FileError(path.string(), 0, "a readable g2o file", "cannot open");
+  return ReadG2o(in, path.string());
+}
+
+PoseGraph ReadG2o(std::istream& in, const std::string& name) {
+  Parser p;
+  p.name = name;
+  Dim dim = Dim::kUnknown;
+  std::map<int64_t, Sim3d> vertices;
+  std::vector<int64_t> vertex_order;
+  std::vector<PoseGraphEdge> edges;
+  std::vector<int> edge_lines;
+  std::optional<int64_t> fixed;
+  auto set_dim = [&](Dim d) {
+    if (dim != Dim::kUnknown && dim != d) p.Fail("records of one dimension (2D or 3D)", "a mix");
+    dim = d;
+  };
+  auto add_vertex = [&](int64_t id, const Sim3d& pose) {
+    if (vertices.count(id)) p.Fail("a new vertex id", fmt::format("duplicate id {}", id));
+    vertices[id] = pose;
+    vertex_order.push_back(id);
+  };
+  std::string line;
+  while (std::getline(in, line)) {
+    ++p.line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    p.fields.clear();
+    p.fields.str(line);
+    std::string tag;
+    if (!(p.fields >> tag) || tag[0] == '#') continue;
+    if (tag == "VERTEX_SE3:QUAT") {
+      set_dim(Dim::k3);
+      const int64_t id = p.Id("vertex id");
+      const Eigen::Vector3d t = p.Translation();
+      const Eigen::Quaterniond q = p.Quaternion();
+      p.End();
+      add_vertex(id, Sim3d(1.0, q, t));
+    } else if (tag == "VERTEX3") {
+      set_dim(Dim::k3);
+      const int64_t id = p.Id("vertex id");
+      const Eigen::Vector3d t = p.Translation();
+      const double roll = p.Number("roll"), pitch = p.Number("pitch"), yaw = p.Number("yaw");
+      p.End();
+      add_vertex(id, Sim3d(1.0, FromRollPitchYaw(roll, pitch, yaw), t));
+    } else if (tag == "VERTEX_SE2") {
+      set_dim(Dim::k2);
+      const int64_t id = p.Id("vertex id");
+      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+      p.End();
+      add_vertex(id, Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0)));
+    } else if (tag == "EDGE_SE3:QUAT" || tag == "EDGE3") {
+      set_dim(Dim::k3);
+      PoseGraphEdge e;
+      e.from = p.Id("from id");
+      e.to = p.Id("to id");
+      const Eigen::Vector3d t = p.Translation();
+      Eigen::Quaterniond q;
+      if (tag == "EDGE3") {
+        const double roll = p.Number("roll"), pitch = p.Number("pitch"), yaw = p.Number("yaw");
+        q = FromRollPitchYaw(roll, pitch, yaw);
+      } else {
+        q = p.Quaternion();
+      }
+      const std::vector<double> upper = p.Numbers(21, "information");
+      p.End();
+      e.from_from_to = Sim3d(1.0, q, t);
+      e.information = Embed6(UpperToSymmetric(upper), tag == "EDGE3" ? 1.0 : 0.5);
+      edges.push_back(e);
+      edge_lines.push_back(p.line_no);
+    } else if (tag == "EDGE_SE2") {
+      set_dim(Dim::k2);
+      PoseGraphEdge e;
+      e.from = p.Id("from id");
+      e.to = p.Id("to id");
+      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+      const std::vector<double> u = p.Numbers(6, "information");
+      p.End();
+      e.from_from_to = Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0));
+      const int idx[3] = {0, 1, 5};
+      const double m[3][3] = {{u[0], u[1], u[2]}, {u[1], u[3], u[4]}, {u[2], u[4], u[5]}};
+      e.information.setZero();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) e.information(idx[r], idx[c]) = m[r][c];
+      edges.push_back(e);
+      edge_lines.push_back(p.line_no);
+    } else if (tag == "FIX") {
+      fixed = p.Id("fixed vertex id");
+      p.End();
+    } else {
+      p.Fail("VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2, VERTEX3, EDGE3 or FIX",
+             "'" + tag + "'");
+    }
+  }
+  if (dim == Dim::kUnknown) throw FileError(name, 0, "at least one vertex or edge", "none");
+
+  // Vertices only referenced by edges: chain the measurements from the lowest id.
+  if (vertices.empty()) {
+    int64_t root = edges.front().from;
+    for (const auto& e : edges) root = std::min({root, e.from, e.to});
+    add_vertex(root, Sim3d());
+  }
+  bool changed = true;
+  while (changed) {
+    changed = false;
+    for (const auto& e : edges) {
+      const bool has_from = vertices.count(e.from) > 0;
+      const bool has_to = vertices.count(e.to) > 0;
+      if (has_from && !has_to) {
+        add_vertex(e.to, vertices[e.from] * e.from_from_to);
+        changed = true;
+      } else if (!has_from && has_to) {
+        add_vertex(e.from, vertices[e.to] * e.from_from_to.Inverse());
+        changed = true;
+      }
+    }
+  }
+  PoseGraph graph(dim == Dim::k2 ? VertexType::kSe2 : VertexType::kSe3);
+  // Insertion order by id (time order in every benchmark file).
+  for (const auto& [id, pose] : vertices) graph.AddVertex(id, pose);
+  for (size_t k = 0; k < edges.size(); ++k) {
+    if (!vertices.count(edges[k].from) || !vertices.count(edges[k].to)) {
+      throw FileError(name, edge_lines[k], "an edge connected to the graph",
+                      fmt::format("edge {} -> {} unreachable", edges[k].from, edges[k].to));
+    }
+    if (edges[k].from == edges[k].to) {
+      throw FileError(name, edge_lines[k], "an edge between two vertices",
+                      fmt::format("self-edge on {}", edges[k].from));
+    }
+    try {
+      graph.AddEdge(edges[k]);
+    } catch (const std::invalid_argument& ex) {
+      throw FileError(name, edge_lines[k], "a valid edge", ex.what());
+    }
+  }
+  if (fixed) {
+    if (!graph.HasVertex(*fixed)) throw FileError(name, 0, "FIX of a known vertex", "unknown id");
+    graph.SetFixedVertex(*fixed);
+  }
+  return graph;
+}
+
+void WriteG2o(std::ostream& out, const PoseGraph& graph) {
+  const bool planar = graph.vertex_type() == VertexType::kSe2;
+  out.precision(17);
+  for (int64_t id : graph.VertexIds()) {
+    const Sim3d& pose = graph.Pose(id);
+    if (planar) {
+      out << "VERTEX_SE2 " << id << ' ' << pose.translation.x() << ' ' << pose.translation.y()
+          << ' ' << YawOf(pose.rotation) << '\n';
+    } else {
+      const auto q = QuaternionToXyzw(pose.rotation);
+      out << "VERTEX_SE3:QUAT " << id << ' ' << pose.translation.x() << ' ' << pose.translation.y()
+          << ' ' << pose.translation.z() << ' ' << q[0] << ' ' << q[1] << ' ' << q[2] << ' ' << q[3]
+          << '\n';
+    }
+  }
+  auto write_edge = [&](int64_t from, int64_t to, const Sim3d& z, const Matrix7d& info) {
+    if (planar) {
+      const int idx[3] = {0, 1, 5};
+      out << "EDGE_SE2 " << from << ' ' << to << ' ' << z.translation.x() << ' '
+          << z.translation.y() << ' ' << YawOf(z.rotation);
+      for (int r = 0; r < 3; ++r)
+        for (int c = r; c < 3; ++c) out << ' ' << info(idx[r], idx[c]);
+      out << '\n';
+      return;
+    }
+    Eigen::Matrix<double, 6, 6> i6 = info.topLeftCorner<6, 6>();
+    i6.block<3, 3>(0, 3) *= 2.0;
+    i6.block<3, 3>(3, 0) *= 2.0;
+    i6.block<3, 3>(3, 3) *= 4.0;
+    const auto q = QuaternionToXyzw(z.rotation);
+    out << "EDGE_SE3:QUAT " << from << ' ' << to << ' ' << z.translation.x() << ' '
+        << z.translation.y() << ' ' << z.translation.z() << ' ' << q[0] << ' ' << q[1] << ' '
+        << q[2] << ' ' << q[3];
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) out << ' ' << i6(r, c);
+    out << '\n';
+  };
+  for (const PoseGraphEdge& e : graph.edges())
+    write_edge(e.from, e.to, e.from_from_to, e.information);
+  for (const LoopConstraint& l : graph.loops()) {
+    write_edge(l.match_id, l.query_id, l.match_from_query, l.weight * l.information);
+  }
+  if (graph.num_vertices() > 0 && graph.fixed_vertex() != graph.VertexIds().front()) {
+    out << "FIX " << graph.fixed_vertex() << '\n';
+  }
+}
+
+}  // namespace sparseloop

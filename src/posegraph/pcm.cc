@@ -1,0 +1,257 @@
+// Pairwise consistency maximisation (PCM) of loop constraints.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/posegraph/pose_graph.h"
+
+namespace sparseloop {
+namespace {
+
+// Chi-square quantile (Wilson-Hilferty approximation; within ~1% for dof >= 3 at p = 0.99).
+double Chi2Quantile(double p, int dof) {
+  // Normal quantile by Acklam's rational approximation (central region is enough here).
+  const double q = p - 0.5;
+  double z;
+  if (std::abs(q) <= 0.425) {
+    const double r = 0.180625 - q * q;
+    z = q *
+        (((((((2509.0809287301226727 * r + 33430.575583588128105) * r + 67265.770927008700853) * r +
+             45921.953931549871457) *
+                r +
+            13731.693765509461125) *
+               r +
+           1971.5909503065514427) *
+              r +
+          133.14166789178437745) *
+             r +
+         3.387132872796366608) /
+        (((((((5226.495278852545925 * r + 28729.085735721942674) * r + 39307.89580009271061) * r +
+             21213.794301586595867) *
+                r +
+            5394.1960214247511077) *
+               r +
+           687.1870074920579083) *
+              r +
+          42.313330701600911252) *
+             r +
+         1.0);
+  } else {
+    double r = q < 0 ? p : 1.0 - p;
+    r = std::sqrt(-std::log(r));
+    double val;
+    if (r <= 5.0) {
+      r -= 1.6;
+      val = (((((((7.7454501427834140764e-4 * r + 0.0227238449892691845833) * r +
+                  0.24178072517745061177) *
+                     r +
+                 1.27045825245236838258) *
+                    r +
+                3.64784832476320460504) *
+                   r +
+               5.7694972214606914055) *
+                  r +
+              4.6303378461565452959) *
+                 r +
+             1.42343711074968357734) /
+            (((((((1.05075007164441684324e-9 * r + 5.475938084995344946e-4) * r +
+                  0.0151986665636164571966) *
+                     r +
+                 0.14810397642748007459) *
+                    r +
+                0.68976733498510000455) *
+                   r +
+               1.6763848301838038494) *
+                  r +
+              2.05319162663775882187) *
+                 r +
+             1.0);
+    } else {
+      r -= 5.0;
+      val = (((((((2.01033439929228813265e-7 * r + 2.71155556874348757815e-5) * r +
+                  0.0012426609473880784386) *
+                     r +
+                 0.026532189526576123093) *
+                    r +
+                0.29656057182850489123) *
+                   r +
+               1.7848265399172913358) *
+                  r +
+              5.4637849111641143699) *
+                 r +
+             6.6579046435011037772) /
+            (((((((2.04426310338993978564e-15 * r + 1.4215117583164458887e-7) * r +
+                  1.8463183175100546818e-5) *
+                     r +
+                 7.868691311456132591e-4) *
+                    r +
+                0.0148753612908506148525) *
+                   r +
+               0.13692988092273580531) *
+                  r +
+              0.59983220655588793769) *
+                 r +
+             1.0);
+    }
+    z = q < 0 ? -val : val;
+  }
+  const double k = dof;
+  const double a = 2.0 / (9.0 * k);
+  const double c = 1.0 - a + z * std::sqrt(a);
+  return k * c * c * c;
+}
+
+// Maximum clique: greedy by degree, then exact branch and bound when small enough.
+class CliqueFinder {
+ public:
+  explicit CliqueFinder(const std::vector<std::vector<bool>>& adj) : adj_(adj), n_(adj.size()) {}
+
+  std::vector<size_t> Greedy() const {
+    std::vector<size_t> order(n_);
+    std::iota(order.begin(), order.end(), 0);
+    std::vector<size_t> degree(n_, 0);
+    for (size_t i = 0; i < n_; ++i)
+      for (size_t j = 0; j < n_; ++j) degree[i] += adj_[i][j] ? 1 : 0;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return degree[a] > degree[b]; });
+    std::vector<size_t> best;
+    // Seed from each vertex (in degree order), grow greedily; keep the largest.
+    for (size_t seed : order) {
+      if (degree[seed] + 1 <= best.size()) break;
+      std::vector<size_t> clique{seed};
+      for (size_t v : order) {
+        if (v == seed) continue;
+        bool ok = true;
+        for (size_t u : clique) ok = ok && adj_[u][v];
+        if (ok) clique.push_back(v);
+      }
+      if (clique.size() > best.size()) best = clique;
+    }
+    return best;
+  }
+
+  std::vector<size_t> Exact(std::vector<size_t> best, size_t max_steps) {
+    best_ = std::move(best);
+    steps_ = 0;
+    max_steps_ = max_steps;
+    std::vector<size_t> candidates(n_);
+    std::iota(candidates.begin(), candidates.end(), 0);
+    std::vector<size_t> current;
+    Expand(current, candidates);
+    return best_;
+  }
+
+ private:
+  void Expand(std::vector<size_t>& current, std::vector<size_t> candidates) {
+    if (++steps_ > max_steps_) return;
+    while (!candidates.empty()) {
+      if (current.size() + candidates.size() <= best_.size()) return;
+      const size_t v = candidates.back();
+      candidates.pop_back();
+      std::vector<size_t> next;
+      for (size_t u : candidates)
+        if (adj_[v][u]) next.push_back(u);
+      current.push_back(v);
+      if (next.empty()) {
+        if (current.size() > best_.size()) best_ = current;
+      } else {
+        Expand(current, next);
+      }
+      current.pop_back();
+    }
+  }
+
+  const std::vector<std::vector<bool>>& adj_;
+  size_t n_;
+  std::vector<size_t> best_;
+  size_t steps_ = 0;
+  size_t max_steps_ = 0;
+};
+
+}  // namespace
+
+std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) const {
+  options.Check();
+  const size_t n = loops_.size();
+  if (n == 0) return {};
+  // Prefix sums over the raw trajectory (vertex insertion order) for the chain covariance:
+  //  sum of squared step lengths, sum of positions, sum of squared position norms.
+  const size_t m = ids_.size();
+  std::vector<double> len2(m, 0.0);
+  std::vector<Eigen::Vector3d> p1(m + 1, Eigen::Vector3d::Zero());
+  std::vector<double> p2(m + 1, 0.0);
+  for (size_t i = 0; i < m; ++i) {
+    const Eigen::Vector3d& p = raw_poses_[i].translation;
+    if (i > 0) {
+      const double l = (p - raw_poses_[i - 1].translation).norm();
+      len2[i] = len2[i - 1] + l * l;
+    }
+    p1[i + 1] = p1[i] + p;
+    p2[i + 1] = p2[i] + p.squaredNorm();
+  }
+  const bool sim3 = type_ == VertexType::kSim3;
+  const double ft2 = options.step_translation_fraction * options.step_translation_fraction;
+  const double sr2 = options.step_rotation_sigma_rad * options.step_rotation_sigma_rad;
+  const double ss2 = sim3 ? options.step_scale_sigma * options.step_scale_sigma : 0.0;
+  // Diagonal covariance of the chain from vertex index i to j, expressed at j.
+  auto chain_cov = [&](size_t i, size_t j) {
+    if (i > j) std::swap(i, j);
+    Eigen::Matrix<double, 7, 1> cov = Eigen::Matrix<double, 7, 1>::Zero();
+    const double steps = static_cast<double>(j - i);
+    const Eigen::Vector3d& pj = raw_poses_[j].translation;
+    // sum_{k in [i, j)} |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
+    const double lever = steps * pj.squaredNorm() - 2.0 * pj.dot(p1[j] - p1[i]) + (p2[j] - p2[i]);
+    const double trans = ft2 * (len2[j] - len2[i]) + (sr2 + ss2) * std::max(lever, 0.0);
+    cov.head<3>().setConstant(trans);
+    cov.segment<3>(3).setConstant(steps * sr2);
+    cov[6] = steps * ss2;
+    return cov;
+  };
+  // Per-loop diagonal covariance from the (effective) information.
+  auto loop_cov = [&](const LoopConstraint& loop) {
+    Eigen::Matrix<double, 7, 1> cov;
+    for (int d = 0; d < 7; ++d) {
+      const double info = loop.weight * loop.information(d, d);
+      cov[d] = info > 0 ? 1.0 / info : std::numeric_limits<double>::infinity();
+    }
+    if (!loop.has_scale) cov[6] = std::numeric_limits<double>::infinity();
+    return cov;
+  };
+  std::vector<std::vector<bool>> adj(n, std::vector<bool>(n, false));
+  std::vector<double> thresholds(8, 0.0);
+  for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
+  for (size_t a = 0; a < n; ++a) {
+    const LoopConstraint& la = loops_[a];
+    const size_t qa = Index(la.query_id), ma = Index(la.match_id);
+    const Eigen::Matrix<double, 7, 1> cov_a = loop_cov(la);
+    for (size_t b = a + 1; b < n; ++b) {
+      const LoopConstraint& lb = loops_[b];
+      const size_t qb = Index(lb.query_id), mb = Index(lb.match_id);
+      // ma_from_qa * qa_from_qb * qb_from_mb * mb_from_ma == identity for consistent loops.
+      const Sim3d cycle = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]) *
+                          lb.match_from_query.Inverse() *
+                          (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+      Vector7d e = cycle.Log();
+      if (!sim3) e[6] = 0.0;
+      const Eigen::Matrix<double, 7, 1> cov =
+          cov_a + loop_cov(lb) + chain_cov(qa, qb) + chain_cov(ma, mb);
+      double chi2 = 0.0;
+      int dof = 0;
+      for (int d = 0; d < 7; ++d) {
+        if (!std::isfinite(cov[d]) || (d == 6 && !sim3)) continue;
+        chi2 += e[d] * e[d] / std::max(cov[d], 1e-18);
+        ++dof;
+      }
+      const bool consistent = dof == 0 || chi2 <= thresholds[dof];
+      adj[a][b] = adj[b][a] = consistent;
+    }
+  }
+  CliqueFinder finder(adj);
+  std::vector<size_t> clique = finder.Greedy();
+  if (n <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
+  std::sort(clique.begin(), clique.end());
+  return clique;
+}
+
+}  // namespace sparseloop

@@ -1,0 +1,439 @@
+#include "sparseloop/posegraph/pose_graph.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numeric>
+
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+
+namespace sparseloop {
+
+int TangentSize(VertexType type) {
+  switch (type) {
+    case VertexType::kSim3:
+      return 7;
+    case VertexType::kSe3:
+      return 6;
+    case VertexType::kFourDof:
+      return 4;
+    case VertexType::kSe2:
+      return 3;
+  }
+  return 7;
+}
+
+std::unique_ptr<ceres::Manifold> CreateVertexManifold(VertexType type) {
+  switch (type) {
+    case VertexType::kSim3:
+      return std::make_unique<Sim3Manifold>();
+    case VertexType::kSe3:
+      return std::make_unique<Se3OnSim3Manifold>();
+    case VertexType::kFourDof:
+      return std::make_unique<FourDofManifold>();
+    case VertexType::kSe2:
+      return std::make_unique<Se2OnSim3Manifold>();
+  }
+  return std::make_unique<Sim3Manifold>();
+}
+
+Matrix7d SqrtInformation(const Matrix7d& information) {
+  SL_CHECK_MSG(information.allFinite(), "information matrix has NaN or Inf");
+  SL_CHECK_MSG((information - information.transpose()).cwiseAbs().maxCoeff() <=
+                   1e-9 * std::max(1.0, information.cwiseAbs().maxCoeff()),
+               "information matrix is not symmetric");
+  Eigen::SelfAdjointEigenSolver<Matrix7d> eig(information);
+  const Eigen::Matrix<double, 7, 1> values = eig.eigenvalues();
+  const double tol = 1e-9 * std::max(1.0, values.cwiseAbs().maxCoeff());
+  SL_CHECK_MSG(values.minCoeff() >= -tol, "information matrix is not positive semi-definite");
+  const Eigen::Matrix<double, 7, 1> sqrt_values = values.cwiseMax(0.0).cwiseSqrt();
+  return sqrt_values.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+void OdometryWeighting::Check() const {
+  SL_CHECK_MSG(translation_fraction > 0, "translation_fraction must be > 0, got {}",
+               translation_fraction);
+  SL_CHECK_MSG(min_translation_sigma > 0, "min_translation_sigma must be > 0, got {}",
+               min_translation_sigma);
+  SL_CHECK_MSG(rotation_sigma_rad > 0, "rotation_sigma_rad must be > 0, got {}",
+               rotation_sigma_rad);
+  SL_CHECK_MSG(scale_sigma > 0, "scale_sigma must be > 0, got {}", scale_sigma);
+}
+
+Matrix7d OdometryWeighting::Information(const Sim3d& from_from_to) const {
+  const double length = from_from_to.translation.norm();
+  const double sigma_t = std::max(translation_fraction * length, min_translation_sigma);
+  return LoopInformation(sigma_t, rotation_sigma_rad, scale_sigma);
+}
+
+Matrix7d LoopInformation(double translation_sigma, double rotation_sigma_rad, double scale_sigma) {
+  SL_CHECK_MSG(translation_sigma > 0 && rotation_sigma_rad > 0 && scale_sigma > 0,
+               "sigmas must be > 0, got {} {} {}", translation_sigma, rotation_sigma_rad,
+               scale_sigma);
+  Eigen::Matrix<double, 7, 1> d;
+  const double it = 1.0 / (translation_sigma * translation_sigma);
+  const double ir = 1.0 / (rotation_sigma_rad * rotation_sigma_rad);
+  d << it, it, it, ir, ir, ir, 1.0 / (scale_sigma * scale_sigma);
+  return d.asDiagonal();
+}
+
+void PcmOptions::Check() const {
+  SL_CHECK_MSG(confidence > 0 && confidence < 1, "pcm confidence must be in (0,1), got {}",
+               confidence);
+  SL_CHECK_MSG(step_translation_fraction > 0 && step_rotation_sigma_rad > 0 && step_scale_sigma > 0,
+               "pcm step sigmas must be > 0");
+}
+
+void PoseGraphOptions::Check() const {
+  SL_CHECK_MSG(max_iterations > 0, "max_iterations must be > 0, got {}", max_iterations);
+  SL_CHECK_MSG(function_tolerance > 0, "function_tolerance must be > 0");
+  SL_CHECK_MSG(gradient_tolerance > 0, "gradient_tolerance must be > 0");
+  SL_CHECK_MSG(parameter_tolerance > 0, "parameter_tolerance must be > 0");
+  SL_CHECK_MSG(loss_scale > 0, "loss_scale must be > 0, got {}", loss_scale);
+  SL_CHECK_MSG(switch_prior_sigma > 0, "switch_prior_sigma must be > 0");
+  SL_CHECK_MSG(switch_reject_below >= 0 && switch_reject_below <= 1,
+               "switch_reject_below must be in [0,1]");
+  SL_CHECK_MSG(num_threads >= 1, "num_threads must be >= 1, got {}", num_threads);
+  pcm.Check();
+}
+
+void DirectionLoopOptions::Check() const {
+  SL_CHECK_MSG(baseline_in_steps > 0, "baseline_in_steps must be > 0");
+  SL_CHECK_MSG(magnitude_sigma_fraction > 0, "magnitude_sigma_fraction must be > 0");
+  SL_CHECK_MSG(direction_sigma_rad > 0, "direction_sigma_rad must be > 0");
+  SL_CHECK_MSG(rotation_sigma_rad > 0, "rotation_sigma_rad must be > 0");
+  SL_CHECK_MSG(weight > 0, "weight must be > 0");
+}
+
+const char* ToString(PoseGraphStatus status) {
+  switch (status) {
+    case PoseGraphStatus::kConverged:
+      return "converged";
+    case PoseGraphStatus::kMaxIterations:
+      return "max_iterations";
+    case PoseGraphStatus::kInterrupted:
+      return "interrupted";
+    case PoseGraphStatus::kFailed:
+      return "failed";
+    case PoseGraphStatus::kNothingToDo:
+      return "nothing_to_do";
+  }
+  return "unknown";
+}
+
+std::string PoseGraphSummary::BriefReport() const {
+  return fmt::format(
+      "Pose graph: {} vertices, {} edges, {} loops ({} rejected); initial cost {:.6e}, final cost "
+      "{:.6e}, {} iterations, {:.3f} s solve + {:.3f} s rejection, termination: {} ({})",
+      num_vertices, num_edges, num_loops, rejected_loops.size(), initial_cost, final_cost,
+      iterations, solve_seconds, rejection_seconds, ToString(status), ceres_message);
+}
+
+void PoseGraph::AddVertex(int64_t id, const Sim3d& world_from_vertex) {
+  SL_CHECK_MSG(!HasVertex(id), "duplicate vertex id {}", id);
+  index_[id] = ids_.size();
+  ids_.push_back(id);
+  params_.push_back(world_from_vertex.ToVector());
+  poses_.push_back(world_from_vertex);
+  raw_poses_.push_back(world_from_vertex);
+}
+
+size_t PoseGraph::Index(int64_t id) const {
+  const auto it = index_.find(id);
+  SL_CHECK_MSG(it != index_.end(), "unknown vertex id {}", id);
+  return it->second;
+}
+
+const Sim3d& PoseGraph::Pose(int64_t id) const { return poses_[Index(id)]; }
+const Sim3d& PoseGraph::RawPose(int64_t id) const { return raw_poses_[Index(id)]; }
+
+void PoseGraph::SetPose(int64_t id, const Sim3d& world_from_vertex) {
+  const size_t i = Index(id);
+  poses_[i] = world_from_vertex;
+  params_[i] = world_from_vertex.ToVector();
+}
+
+void PoseGraph::AddEdge(const PoseGraphEdge& edge) {
+  Index(edge.from);
+  Index(edge.to);
+  SL_CHECK_MSG(edge.from != edge.to, "edge from a vertex to itself ({})", edge.from);
+  SqrtInformation(edge.information);  // validates
+  edges_.push_back(edge);
+}
+
+size_t PoseGraph::AddLoop(const LoopConstraint& loop) {
+  Index(loop.query_id);
+  Index(loop.match_id);
+  SL_CHECK_MSG(loop.query_id != loop.match_id, "loop from a vertex to itself ({})", loop.query_id);
+  SL_CHECK_MSG(loop.weight > 0 && std::isfinite(loop.weight), "loop weight must be > 0, got {}",
+               loop.weight);
+  SqrtInformation(loop.information);
+  loops_.push_back(loop);
+  return loops_.size() - 1;
+}
+
+void PoseGraph::SetFixedVertex(int64_t id) {
+  Index(id);
+  fixed_ = id;
+}
+
+int64_t PoseGraph::fixed_vertex() const {
+  SL_CHECK_MSG(!ids_.empty(), "graph has no vertices");
+  return fixed_ ? *fixed_ : ids_.front();
+}
+
+namespace {
+
+ceres::LossFunction* MakeLoss(RobustLoss loss, double scale) {
+  switch (loss) {
+    case RobustLoss::kTrivial:
+      return nullptr;
+    case RobustLoss::kHuber:
+      return new ceres::HuberLoss(scale);
+    case RobustLoss::kCauchy:
+      return new ceres::CauchyLoss(scale);
+  }
+  return nullptr;
+}
+
+Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {
+  Matrix7d info = loop.weight * loop.information;
+  if (!loop.has_scale) {
+    info.row(6).setZero();
+    info.col(6).setZero();
+  }
+  return info;
+}
+
+// Switchable loop: r = s * S * log(...), with a separate prior on the switch s in [0, 1].
+class SwitchableEdgeError {
+ public:
+  SwitchableEdgeError(const Sim3d& a_from_b, const Matrix7d& sqrt_information)
+      : edge_(a_from_b, sqrt_information) {}
+  template <typename T>
+  bool operator()(const T* a, const T* b, const T* s, T* residual) const {
+    if (!edge_(a, b, residual)) return false;
+    for (int i = 0; i < 7; ++i) residual[i] *= s[0];
+    return true;
+  }
+
+ private:
+  EdgeError edge_;
+};
+
+class SwitchPrior : public ceres::SizedCostFunction<1, 1> {
+ public:
+  explicit SwitchPrior(double sigma) : inv_sigma_(1.0 / sigma) {}
+  bool Evaluate(double const* const* params, double* residual, double** jacobians) const override {
+    residual[0] = (1.0 - params[0][0]) * inv_sigma_;
+    if (jacobians != nullptr && jacobians[0] != nullptr) jacobians[0][0] = -inv_sigma_;
+    return true;
+  }
+
+ private:
+  double inv_sigma_;
+};
+
+class InterruptCallback : public ceres::IterationCallback {
+ public:
+  explicit InterruptCallback(const std::atomic<bool>* flag) : flag_(flag) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    if (flag_ != nullptr && flag_->load(std::memory_order_acquire)) {
+      interrupted_ = true;
+      // Keep the last accepted step: it is a better warm start than the previous solution.
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  bool interrupted() const { return interrupted_; }
+
+ private:
+  const std::atomic<bool>* flag_;
+  bool interrupted_ = false;
+};
+
+class LogCallback : public ceres::IterationCallback {
+ public:
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    Logger().info("posegraph iter {:3d} cost {:.6e} |step| {:.3e} tr_radius {:.3e}", s.iteration,
+                  s.cost, s.step_norm, s.trust_region_radius);
+    return ceres::SOLVER_CONTINUE;
+  }
+};
+
+}  // namespace
+
+PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
+                                     const std::atomic<bool>* interrupt) {
+  options.Check();
+  PoseGraphSummary summary;
+  summary.num_vertices = ids_.size();
+  summary.num_edges = edges_.size();
+  summary.num_loops = loops_.size();
+  if (ids_.size() < 2) {
+    summary.status = PoseGraphStatus::kNothingToDo;
+    summary.ceres_message = "fewer than two vertices";
+    return summary;
+  }
+
+  // 1. Outlier rejection before the solve (PCM).
+  std::vector<bool> use_loop(loops_.size(), true);
+  if (options.rejection == OutlierRejection::kPcm ||
+      options.rejection == OutlierRejection::kPcmAndSwitchable) {
+    Timer timer;
+    std::fill(use_loop.begin(), use_loop.end(), false);
+    for (size_t i : PcmConsistentLoops(options.pcm)) use_loop[i] = true;
+    summary.rejection_seconds = timer.ElapsedMs() / 1000.0;
+  }
+  const bool switchable = options.rejection == OutlierRejection::kSwitchable ||
+                          options.rejection == OutlierRejection::kPcmAndSwitchable;
+
+  // 2. The Ceres problem over the stored parameter blocks.
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  const std::unique_ptr<ceres::Manifold> manifold = CreateVertexManifold(type_);
+  for (size_t i = 0; i < ids_.size(); ++i) {
+    problem.AddParameterBlock(params_[i].data(), 8, manifold.get());
+  }
+  for (const PoseGraphEdge& e : edges_) {
+    problem.AddResidualBlock(EdgeError::Create(e.from_from_to, SqrtInformation(e.information)),
+                             MakeLoss(options.edge_loss, options.loss_scale),
+                             params_[Index(e.from)].data(), params_[Index(e.to)].data());
+  }
+  std::vector<double> switches(loops_.size(), 1.0);
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    if (!use_loop[k]) continue;
+    const LoopConstraint& loop = loops_[k];
+    const Matrix7d sqrt_info = SqrtInformation(LoopEffectiveInformation(loop));
+    double* match = params_[Index(loop.match_id)].data();
+    double* query = params_[Index(loop.query_id)].data();
+    if (switchable) {
+      auto* cost = new ceres::AutoDiffCostFunction<SwitchableEdgeError, 7, 8, 8, 1>(
+          new SwitchableEdgeError(loop.match_from_query, sqrt_info));
+      problem.AddResidualBlock(cost, MakeLoss(options.loop_loss, options.loss_scale), match, query,
+                               &switches[k]);
+      problem.AddResidualBlock(new SwitchPrior(options.switch_prior_sigma), nullptr, &switches[k]);
+      problem.SetParameterLowerBound(&switches[k], 0, 0.0);
+      problem.SetParameterUpperBound(&switches[k], 0, 1.0);
+    } else {
+      problem.AddResidualBlock(EdgeError::Create(loop.match_from_query, sqrt_info),
+                               MakeLoss(options.loop_loss, options.loss_scale), match, query);
+    }
+  }
+  // Gauge: see SetFixedVertex.
+  problem.SetParameterBlockConstant(params_[Index(fixed_vertex())].data());
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.num_threads = options.num_threads;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  InterruptCallback interrupt_callback(interrupt);
+  LogCallback log_callback;
+  if (interrupt != nullptr) solver_options.callbacks.push_back(&interrupt_callback);
+  if (options.log_progress) solver_options.callbacks.push_back(&log_callback);
+
+  const std::vector<Vector8d> backup = params_;
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(solver_options, &problem, &ceres_summary);
+
+  summary.initial_cost = ceres_summary.initial_cost;
+  summary.final_cost = ceres_summary.final_cost;
+  summary.iterations = static_cast<int>(ceres_summary.iterations.size()) - 1;
+  summary.solve_seconds = ceres_summary.total_time_in_seconds;
+  summary.ceres_message = ceres_summary.message;
+  if (interrupt_callback.interrupted()) {
+    summary.status = PoseGraphStatus::kInterrupted;
+  } else if (ceres_summary.termination_type == ceres::CONVERGENCE) {
+    summary.status = PoseGraphStatus::kConverged;
+  } else if (ceres_summary.termination_type == ceres::NO_CONVERGENCE) {
+    summary.status = PoseGraphStatus::kMaxIterations;
+  } else {
+    summary.status = PoseGraphStatus::kFailed;
+  }
+  if (summary.status == PoseGraphStatus::kFailed) {
+    params_ = backup;
+    Logger().warn("pose graph solve failed: {}", ceres_summary.message);
+  }
+  for (size_t i = 0; i < params_.size(); ++i) {
+    Vector8d& p = params_[i];
+    p.head<4>().normalize();
+    poses_[i] = Sim3d::FromVector(p);
+  }
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    const bool rejected = !use_loop[k] || (switchable && switches[k] < options.switch_reject_below);
+    if (rejected) {
+      summary.rejected_loops.push_back(k);
+      summary.rejected_loop_ids.push_back({loops_[k].query_id, loops_[k].match_id});
+    }
+  }
+  return summary;
+}
+
+PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
+                             const std::vector<Sim3d>& raw_world_from_keyframe, VertexType type,
+                             const OdometryWeighting& weighting) {
+  weighting.Check();
+  SL_CHECK_MSG(ids.size() == raw_world_from_keyframe.size(),
+               "ids ({}) and poses ({}) differ in size", ids.size(),
+               raw_world_from_keyframe.size());
+  PoseGraph graph(type);
+  for (size_t i = 0; i < ids.size(); ++i) graph.AddVertex(ids[i], raw_world_from_keyframe[i]);
+  for (size_t i = 1; i < ids.size(); ++i) {
+    PoseGraphEdge edge;
+    edge.from = ids[i - 1];
+    edge.to = ids[i];
+    edge.from_from_to = raw_world_from_keyframe[i - 1].Inverse() * raw_world_from_keyframe[i];
+    edge.information = weighting.Information(edge.from_from_to);
+    if (type != VertexType::kSim3) edge.from_from_to.scale = 1.0;
+    graph.AddEdge(edge);
+  }
+  return graph;
+}
+
+LoopConstraint MakeLoopConstraintFromDirection(int64_t query_id, int64_t match_id,
+                                               const Sim3d& raw_world_from_query,
+                                               const Sim3d& raw_world_from_match,
+                                               const Eigen::Quaterniond& match_from_query_rotation,
+                                               const Eigen::Vector3d& unit_direction,
+                                               double local_step_length,
+                                               const DirectionLoopOptions& options) {
+  options.Check();
+  SL_CHECK_MSG(std::abs(unit_direction.norm() - 1.0) < 1e-6,
+               "unit_direction must have norm 1, got {}", unit_direction.norm());
+  SL_CHECK_MSG(local_step_length > 0 && std::isfinite(local_step_length),
+               "local_step_length must be > 0, got {}", local_step_length);
+  SL_CHECK_MSG(raw_world_from_query.scale > 0 && raw_world_from_match.scale > 0,
+               "raw poses must have positive scale");
+  // World units -> the match keyframe's frame units (the translation lives in that frame).
+  const double magnitude =
+      options.baseline_in_steps * local_step_length / raw_world_from_match.scale;
+  LoopConstraint loop;
+  loop.query_id = query_id;
+  loop.match_id = match_id;
+  loop.match_from_query = Sim3d(1.0, match_from_query_rotation, magnitude * unit_direction);
+  loop.has_scale = false;
+  loop.weight = options.weight;
+  const double sigma_along = options.magnitude_sigma_fraction * magnitude;
+  const double sigma_perp = options.direction_sigma_rad * magnitude;
+  const Eigen::Matrix3d dd = unit_direction * unit_direction.transpose();
+  loop.information.setZero();
+  loop.information.topLeftCorner<3, 3>() =
+      dd / (sigma_along * sigma_along) +
+      (Eigen::Matrix3d::Identity() - dd) / (sigma_perp * sigma_perp);
+  loop.information.block<3, 3>(3, 3) =
+      Eigen::Matrix3d::Identity() / (options.rotation_sigma_rad * options.rotation_sigma_rad);
+  return loop;
+}
+
+}  // namespace sparseloop

@@ -1,0 +1,80 @@
+// End-to-end tests of `sparseloop convert`.
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "cli/cli_runner.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "test_util.h"
+
+namespace sparseloop::test {
+namespace {
+
+void Write(const std::filesystem::path& path, const std::string& content) {
+  std::ofstream(path) << content;
+}
+
+TEST(CliConvert, TumToKittiAndBack) {
+  const auto dir = TempDir();
+  Write(dir / "in.txt",
+        "# t x y z qx qy qz qw\n0.5 1 2 3 0 0 0 1\n0.6 4 5 6 0 0 0.7071067811865476 "
+        "0.7071067811865476\n");
+  const CliResult r = RunCli({"convert", "--in", (dir / "in.txt").string(), "--out",
+                              (dir / "out.txt").string(), "--to", "kitti"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("wrote 2 poses (tum -> kitti)"), std::string::npos) << r.out;
+  EXPECT_EQ(DetectTrajectoryFormat(dir / "out.txt"), TrajectoryFormat::kKitti);
+  const Trajectory k = ReadTrajectory(dir / "out.txt");
+  ASSERT_EQ(k.size(), 2u);
+  EXPECT_EQ(k.poses[1].world_from_cam.translation, Eigen::Vector3d(4, 5, 6));
+  // 90 degrees about z: x -> y.
+  EXPECT_TRUE((k.poses[1].world_from_cam.rotation * Eigen::Vector3d::UnitX())
+                  .isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  const CliResult e = RunCli({"convert", "--in", (dir / "in.txt").string(), "--out",
+                              (dir / "out.csv").string(), "--to", "euroc"});
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  const Trajectory back = ReadTrajectory(dir / "out.csv");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR(back.poses[1].timestamp, 0.6, 1e-9);
+}
+
+TEST(CliConvert, MalformedInputExits2WithFileAndLine) {
+  const auto dir = TempDir();
+  Write(dir / "bad.txt", "0.5 1 2 3 0 0 0 1\n0.6 1 2 3 0 0 0 1.5\n");
+  const CliResult r = RunCli({"convert", "--in", (dir / "bad.txt").string(), "--out",
+                              (dir / "out.txt").string(), "--to", "kitti"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find((dir / "bad.txt").string() + ":2:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unit quaternion"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out.txt"));
+}
+
+TEST(CliConvert, BadFormatNameAndPositionsToTumExit2) {
+  const auto dir = TempDir();
+  Write(dir / "pos.txt", "0 1 2 3\n1 2 3 4\n");
+  CliResult r = RunCli({"convert", "--in", (dir / "pos.txt").string(), "--out",
+                        (dir / "o.txt").string(), "--to", "g2o"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown trajectory format 'g2o'"), std::string::npos) << r.err;
+  r = RunCli({"convert", "--in", (dir / "pos.txt").string(), "--out", (dir / "o.txt").string(),
+              "--to", "tum"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("positions-only"), std::string::npos) << r.err;
+  r = RunCli({"convert", "--in", (dir / "pos.txt").string(), "--out", (dir / "o.txt").string(),
+              "--to", "positions"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(ReadTrajectory(dir / "o.txt").poses[1].world_from_cam.translation,
+            Eigen::Vector3d(2, 3, 4));
+}
+
+TEST(CliConvert, MissingInputExits2) {
+  const auto dir = TempDir();
+  const CliResult r = RunCli({"convert", "--in", (dir / "none.txt").string(), "--out",
+                              (dir / "o.txt").string(), "--to", "tum"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("none.txt"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace sparseloop::test

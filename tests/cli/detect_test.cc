@@ -1,0 +1,101 @@
+// End-to-end tests of `sparseloop detect`.
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_runner.h"
+#include "test_util.h"
+
+namespace sparseloop::test {
+namespace {
+
+std::string ReadAll(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+const char* kCastleIntrinsics = "689.87,691.04,379.798,251.327";
+
+TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const auto out = TempDir();
+  const CliResult r =
+      RunCli({"detect", "--dataset", "images:" + (DataDir() / "castle_p30_768" / "images").string(),
+              "--intrinsics", kCastleIntrinsics, "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string csv = ReadAll(out / "loops.csv");
+  std::istringstream lines(csv);
+  std::string header;
+  std::getline(lines, header);
+  EXPECT_EQ(header, "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale");
+  int loops = 0;
+  bool ring = false;
+  for (std::string line; std::getline(lines, line);) {
+    int q = -1, m = -1;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%d,%d", &q, &m), 2) << line;
+    EXPECT_GT(q, m);
+    EXPECT_NE(line.find(",detected,"), std::string::npos);
+    // Frame indices of images:DIR are 0-based: view 0029 is index 29, views 0000-0002 are 0-2.
+    ring = ring || (q >= 28 && m <= 2);
+    ++loops;
+  }
+  EXPECT_TRUE(ring) << csv;
+  const auto summary = nlohmann::json::parse(ReadAll(out / "summary.json"));
+  EXPECT_EQ(summary["keyframes"].get<int>(), 30);
+  EXPECT_EQ(summary["loops"].get<int>(), loops);
+  EXPECT_EQ(summary["search"].get<std::string>(), "global");
+  EXPECT_GT(summary["bytes_per_keyframe"].get<double>(), 0.0);
+  for (const char* stage : {"extract", "search", "match", "verify", "total"}) {
+    ASSERT_TRUE(summary["timing_ms"].contains(stage)) << stage;
+    EXPECT_LE(summary["timing_ms"][stage]["median"].get<double>(),
+              summary["timing_ms"][stage]["max"].get<double>());
+  }
+  EXPECT_GT(summary["total_ms"].get<double>(), 0.0);
+}
+
+TEST(CliDetect, SmallKChangesBytesPerKeyframe) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const auto out = TempDir();
+  const CliResult r =
+      RunCli({"detect", "--dataset", "images:" + (DataDir() / "castle_p30_768" / "images").string(),
+              "--intrinsics", kCastleIntrinsics, "-K", "15", "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(ReadAll(out / "summary.json"));
+  EXPECT_LE(summary["bytes_per_keyframe"].get<double>(), 1024.0);
+  EXPECT_EQ(summary["config"]["features"]["max_features"].get<int>(), 15);
+}
+
+TEST(CliDetect, PaperSearchWithoutPosesExits2) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const auto out = TempDir();
+  const CliResult r =
+      RunCli({"detect", "--dataset", "images:" + (DataDir() / "castle_p30_768" / "images").string(),
+              "--intrinsics", kCastleIntrinsics, "--search", "paper", "--out", out.string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("needs poses"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out / "loops.csv"));
+}
+
+TEST(CliDetect, BadArgumentsExit2) {
+  const auto out = TempDir();
+  EXPECT_EQ(RunCli({"detect", "--out", out.string()}).exit_code, 2);  // --dataset missing
+  EXPECT_EQ(RunCli({"detect", "--dataset", "images:/nonexistent/dir", "--intrinsics",
+                    "500,500,320,240", "--out", out.string()})
+                .exit_code,
+            2);
+  const CliResult bad_k = RunCli({"detect", "--dataset", "images:" + out.string(), "--intrinsics",
+                                  "1,2,3", "--out", out.string()});
+  EXPECT_EQ(bad_k.exit_code, 2);
+  EXPECT_NE(bad_k.err.find("fx,fy,cx,cy"), std::string::npos) << bad_k.err;
+  const CliResult bad_search = RunCli({"detect", "--dataset", "images:" + out.string(), "--search",
+                                       "sideways", "--out", out.string()});
+  EXPECT_EQ(bad_search.exit_code, 2);
+}
+
+}  // namespace
+}  // namespace sparseloop::test

@@ -1,0 +1,145 @@
+// End-to-end tests of `sparseloop eval`.
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_runner.h"
+#include "sparseloop/eval/metrics.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "test_util.h"
+
+namespace sparseloop::test {
+namespace {
+
+nlohmann::json ReadJson(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  return nlohmann::json::parse(in);
+}
+
+double Rel(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
+
+TEST(CliEval, KittiSequence00SiftAgreesWithLibrary) {
+  SL_REQUIRE_DATA("kitti_gt_poses/00.txt");
+  SL_REQUIRE_DATA("vslam_trajectories/kitti00/kitti_sift_flannmatch.txt");
+  const auto gt = DataDir() / "kitti_gt_poses/00.txt";
+  const auto est = DataDir() / "vslam_trajectories/kitti00/kitti_sift_flannmatch.txt";
+  const auto json_path = TempDir() / "eval.json";
+  const auto r = RunCli({"eval", "--gt", gt.string(), "--est", est.string(), "--align", "se3",
+                         "--json", json_path.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("ATE"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("KITTI"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("positions only"), std::string::npos) << r.out;
+
+  // The library on the same inputs (index association: neither file has timestamps).
+  EvaluationOptions options;
+  options.association.method = AssociationMethod::kIndex;
+  options.alignment = Alignment::kSE3;
+  const auto e = EvaluateTrajectory(ReadTrajectory(gt), ReadTrajectory(est), options);
+  ASSERT_EQ(e.status, EvaluationStatus::kOk);
+  ASSERT_TRUE(e.kitti && e.kitti->t_err_pct);
+
+  // Printed per-segment table: one row per length with the library's numbers (6 decimals).
+  for (const auto& p : e.kitti->per_length) {
+    const std::string row =
+        fmt::format("{:>8.0f}  {:>8}  {:>12.6f}", p.length, p.count, p.t_err_pct);
+    EXPECT_NE(r.out.find(row), std::string::npos) << "missing row '" << row << "' in\n" << r.out;
+  }
+  EXPECT_NE(r.out.find(fmt::format("rmse {:.6f}", e.ate.rmse)), std::string::npos) << r.out;
+
+  const auto j = ReadJson(json_path);
+  for (const char* key :
+       {"ate_rmse_m", "kitti_t_err_pct", "kitti_r_err_deg_per_100m", "loop_precision",
+        "loop_recall", "loop_recall_at_100p", "ate", "rpe", "kitti", "alignment"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_LT(Rel(j["ate_rmse_m"].get<double>(), e.ate.rmse), 1e-12);
+  EXPECT_LT(Rel(j["kitti_t_err_pct"].get<double>(), *e.kitti->t_err_pct), 1e-12);
+  EXPECT_TRUE(j["kitti_r_err_deg_per_100m"].is_null());  // positions-only estimate
+  EXPECT_TRUE(j["loop_precision"].is_null());
+  EXPECT_EQ(j["num_associated"].get<size_t>(), 4541u);
+  ASSERT_EQ(j["kitti"]["per_length"].size(), e.kitti->per_length.size());
+  for (size_t k = 0; k < e.kitti->per_length.size(); ++k) {
+    EXPECT_LT(Rel(j["kitti"]["per_length"][k]["t_err_pct"].get<double>(),
+                  e.kitti->per_length[k].t_err_pct),
+              1e-12);
+  }
+}
+
+// 8 frames along x; frame 6 returns next to frame 0 and frame 7 next to frame 2.
+void WriteHandMadePositions(const std::filesystem::path& path) {
+  std::ofstream out(path);
+  const double xs[] = {0, 10, 20, 30, 40, 50, 0.5, 20.2};
+  for (int i = 0; i < 8; ++i) out << i << " " << xs[i] << " 0 0\n";
+}
+
+TEST(CliEval, LoopPrecisionRecall) {
+  const auto dir = TempDir();
+  WriteHandMadePositions(dir / "gt.txt");
+  {
+    std::ofstream out(dir / "loops.csv");
+    out << "query,match,score,inliers\n"
+        << "6,0,0.9,50\n"   // correct
+        << "5,1,0.8,20\n";  // wrong
+  }
+  const auto json_path = dir / "out.json";
+  // --derive-loops 1,3: GT pairs (6,0) and (7,2) -> precision 1/2, recall 1/2, R@100P 1/2.
+  const auto r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est",
+                         (dir / "gt.txt").string(), "--align", "none", "--derive-loops", "1,3",
+                         "--loops", (dir / "loops.csv").string(), "--json", json_path.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("GT loops     2 pairs"), std::string::npos) << r.out;
+  const auto j = ReadJson(json_path);
+  EXPECT_DOUBLE_EQ(j["loop_precision"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["loop_recall"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["loop_recall_at_100p"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["ate_rmse_m"].get<double>(), 0.0);
+  EXPECT_TRUE(j["kitti_t_err_pct"].is_null());  // far shorter than 100 m
+}
+
+TEST(CliEval, MalformedInputExits2WithFileAndLine) {
+  const auto dir = TempDir();
+  WriteHandMadePositions(dir / "gt.txt");
+  {
+    std::ofstream out(dir / "bad.txt");
+    out << "0 0 0 0\n1 1 0 0\n2 oops 0 0\n";
+  }
+  auto r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "bad.txt").string(),
+                   "--est-format", "positions"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("bad.txt:3"), std::string::npos) << r.err;
+
+  {
+    std::ofstream out(dir / "loops.csv");
+    out << "query,match,score\n6,0,0.9\n5,1\n";
+  }
+  r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "gt.txt").string(),
+              "--align", "none", "--derive-loops", "1,3", "--loops", (dir / "loops.csv").string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("loops.csv:3"), std::string::npos) << r.err;
+
+  r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "gt.txt").string(),
+              "--derive-loops", "five"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--derive-loops"), std::string::npos) << r.err;
+
+  r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "gt.txt").string(),
+              "--align", "affine"});
+  EXPECT_EQ(r.exit_code, 2);
+}
+
+TEST(CliEval, MissingFileExits2) {
+  const auto dir = TempDir();
+  WriteHandMadePositions(dir / "gt.txt");
+  const auto r = RunCli(
+      {"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "does_not_exist.txt").string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("does_not_exist.txt"), std::string::npos) << r.err;
+  EXPECT_EQ(RunCli({"eval", "--gt", (dir / "gt.txt").string()}).exit_code, 2);  // --est missing
+}
+
+}  // namespace
+}  // namespace sparseloop::test

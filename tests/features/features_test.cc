@@ -1,0 +1,190 @@
+#include <random>
+#include <set>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "sparseloop/features/informative_features.h"
+#include "test_util.h"
+
+namespace sparseloop {
+namespace {
+
+Descriptor RandomDescriptor(std::mt19937_64& rng) { return {rng(), rng(), rng(), rng()}; }
+
+TEST(Features, HammingAndPopcountKnownAnswers) {
+  const Descriptor zero{0, 0, 0, 0};
+  const Descriptor ones{~0ull, ~0ull, ~0ull, ~0ull};
+  const Descriptor some{0b1011, 0, 1ull << 63, 0};
+  EXPECT_EQ(Popcount(zero), 0);
+  EXPECT_EQ(Popcount(ones), 256);
+  EXPECT_EQ(Popcount(some), 4);
+  EXPECT_EQ(HammingDistance(zero, ones), 256);
+  EXPECT_EQ(HammingDistance(some, some), 0);
+  EXPECT_EQ(HammingDistance(zero, some), 4);
+}
+
+TEST(Features, HammingMatchesBitByBitOracle) {
+  auto rng = test::SeededRng(1);
+  for (int trial = 0; trial < 100; ++trial) {
+    const Descriptor a = RandomDescriptor(rng), b = RandomDescriptor(rng);
+    int bits = 0;
+    for (int w = 0; w < 4; ++w)
+      for (int i = 0; i < 64; ++i) bits += ((a[w] >> i) & 1) != ((b[w] >> i) & 1);
+    EXPECT_EQ(HammingDistance(a, b), bits);
+  }
+}
+
+std::vector<cv::KeyPoint> GridKeypoints() {
+  // 4 keypoints in the left half with high responses, 2 in the right half with low ones.
+  std::vector<cv::KeyPoint> k;
+  k.emplace_back(cv::Point2f(10, 10), 7, -1, 0.9f);
+  k.emplace_back(cv::Point2f(20, 10), 7, -1, 0.8f);
+  k.emplace_back(cv::Point2f(30, 10), 7, -1, 0.7f);
+  k.emplace_back(cv::Point2f(40, 10), 7, -1, 0.6f);
+  k.emplace_back(cv::Point2f(90, 10), 7, -1, 0.2f);
+  k.emplace_back(cv::Point2f(95, 10), 7, -1, 0.1f);
+  return k;
+}
+
+TEST(Features, RankingByResponsePopcountAndGrid) {
+  const auto kps = GridKeypoints();
+  std::vector<Descriptor> d(kps.size(), Descriptor{0, 0, 0, 0});
+  d[5] = {~0ull, 0, 0, 0};  // most set bits
+  d[3] = {0xFFull, 0, 0, 0};
+  EXPECT_EQ(RankFeatures(kps, d, FeatureRanking::kResponse, 3, {100, 20}, 2, 1),
+            (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(RankFeatures(kps, d, FeatureRanking::kPopcount, 2, {100, 20}, 2, 1),
+            (std::vector<int>{5, 3}));
+  // Grid 2x1: best of the left cell, best of the right cell, then second of each.
+  EXPECT_EQ(RankFeatures(kps, d, FeatureRanking::kGridResponse, 4, {100, 20}, 2, 1),
+            (std::vector<int>{0, 4, 1, 5}));
+  // k larger than the count keeps everything once.
+  auto all = RankFeatures(kps, d, FeatureRanking::kGridResponse, 100, {100, 20}, 2, 1);
+  EXPECT_EQ(std::set<int>(all.begin(), all.end()).size(), kps.size());
+}
+
+TEST(Features, HighGradientMaskSelectsEdgesOnly) {
+  cv::Mat img(128, 128, CV_8UC1, cv::Scalar(100));
+  img(cv::Rect(64, 0, 64, 128)).setTo(200);  // vertical step edge at x = 64
+  GradientMaskOptions o;
+  o.dilate_radius = 2;
+  const cv::Mat mask = HighGradientMask(img, o);
+  EXPECT_EQ(mask.at<uint8_t>(50, 64), 255);
+  EXPECT_EQ(mask.at<uint8_t>(50, 62), 255);  // within the dilation
+  EXPECT_EQ(mask.at<uint8_t>(50, 20), 0);
+  EXPECT_EQ(mask.at<uint8_t>(50, 110), 0);
+  const cv::Mat flat(64, 64, CV_8UC1, cv::Scalar(7));
+  EXPECT_EQ(cv::countNonZero(HighGradientMask(flat, o)), 0);
+}
+
+cv::Mat TexturedImage(uint64_t seed) {
+  cv::Mat img(240, 320, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 1.5);
+  for (int i = 0; i < 40; ++i)
+    cv::rectangle(img, cv::Rect(rng.uniform(0, 300), rng.uniform(0, 220), 20, 20),
+                  cv::Scalar(rng.uniform(0, 255)), cv::FILLED);
+  return img;
+}
+
+CameraIntrinsics SmallCamera() {
+  CameraIntrinsics k;
+  k.fx = k.fy = 300;
+  k.cx = 160;
+  k.cy = 120;
+  k.width = 320;
+  k.height = 240;
+  return k;
+}
+
+TEST(Features, ExtractKeepsAtMostKAndIsDeterministic) {
+  const cv::Mat img = TexturedImage(3);
+  const CameraIntrinsics cam = SmallCamera();
+  FeatureInput in;
+  in.image = &img;
+  in.intrinsics = &cam;
+  FeatureOptions o;
+  o.max_features = 15;
+  KeyframeRecord a, b;
+  ExtractInformativeFeatures(in, o, &a);
+  ExtractInformativeFeatures(in, o, &b);
+  ASSERT_EQ(a.size(), 15u);
+  EXPECT_EQ(a.keypoints.size(), 15u);
+  EXPECT_TRUE(a.depths.empty());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a.descriptors[i], b.descriptors[i]);
+    EXPECT_EQ(a.keypoints[i].x, b.keypoints[i].x);
+    // Normalised coordinates of a pixel inside the 320x240 image.
+    EXPECT_LE(std::abs(a.keypoints[i].x), 160.0 / 300.0 + 1e-6);
+    EXPECT_LE(std::abs(a.keypoints[i].y), 120.0 / 300.0 + 1e-6);
+  }
+  // The paper's budget: K = 15 fits in 1 KiB, counted with inline and heap bytes.
+  EXPECT_LE(a.Bytes(), 1024u);
+  EXPECT_GE(a.Bytes(), sizeof(KeyframeRecord) + 15 * (32 + sizeof(CompactKeypoint)));
+}
+
+TEST(Features, MaskRestrictsExtractionArea) {
+  const cv::Mat img = TexturedImage(4);
+  const CameraIntrinsics cam = SmallCamera();
+  cv::Mat mask(img.size(), CV_8UC1, cv::Scalar(0));
+  mask(cv::Rect(0, 0, 160, 240)).setTo(255);  // left half only
+  FeatureInput in;
+  in.image = &img;
+  in.intrinsics = &cam;
+  in.mask = &mask;
+  KeyframeRecord r;
+  ExtractInformativeFeatures(in, FeatureOptions{}, &r);
+  ASSERT_GT(r.size(), 5u);
+  for (const auto& k : r.keypoints) EXPECT_LT(k.x, 0.0f);  // u < cx
+}
+
+TEST(Features, MappedPixelsGiveDepths) {
+  const cv::Mat img = TexturedImage(5);
+  const CameraIntrinsics cam = SmallCamera();
+  // Every pixel on a coarse lattice is "mapped" with depth = 1 + u / 100.
+  std::vector<cv::Point2f> pixels;
+  std::vector<float> depths;
+  for (int v = 0; v < 240; v += 2)
+    for (int u = 0; u < 320; u += 2) {
+      pixels.emplace_back(float(u), float(v));
+      depths.push_back(1.0f + u / 100.0f);
+    }
+  FeatureInput in;
+  in.image = &img;
+  in.intrinsics = &cam;
+  in.mapped_pixels = &pixels;
+  in.mapped_depths = &depths;
+  FeatureOptions o;
+  o.max_features = 30;
+  KeyframeRecord r;
+  ExtractInformativeFeatures(in, o, &r);
+  ASSERT_EQ(r.depths.size(), r.size());
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double u = r.keypoints[i].x * 300 + 160;
+    EXPECT_NEAR(r.depths[i], 1.0 + u / 100.0, 0.03);  // nearest lattice pixel within 1.5 px
+  }
+}
+
+TEST(Features, OptionsCheck) {
+  FeatureOptions o;
+  EXPECT_NO_THROW(o.Check());
+  o.max_features = 2;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o = FeatureOptions{};
+  o.orb_candidates = o.max_features - 1;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  EXPECT_THROW(ParseFeatureRanking("best"), std::invalid_argument);
+  EXPECT_EQ(ParseFeatureRanking("grid"), FeatureRanking::kGridResponse);
+  const cv::Mat color(10, 10, CV_8UC3);
+  const CameraIntrinsics cam = SmallCamera();
+  FeatureInput in;
+  in.image = &color;
+  in.intrinsics = &cam;
+  KeyframeRecord r;
+  EXPECT_THROW(ExtractInformativeFeatures(in, FeatureOptions{}, &r), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace sparseloop

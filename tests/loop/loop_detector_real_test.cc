@@ -1,0 +1,169 @@
+// The detector on real data with ONE default parameter set (issue 3 acceptance checks).
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "real_data.h"
+#include "sparseloop/loop/loop_detector.h"
+
+namespace sparseloop {
+namespace {
+
+double Deg(double rad) { return rad * 180.0 / M_PI; }
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return Deg(std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)));
+}
+
+TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const auto frames = test::LoadCastle();
+  LoopDetector detector(LoopDetector::Options{});
+  std::vector<LoopResult> loops;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    KeyframeInput in;
+    in.id = static_cast<int64_t>(i + 1);  // view number
+    in.image = frames[i].image;
+    in.intrinsics = frames[i].intrinsics;
+    in.world_from_cam = Sim3d(frames[i].world_from_cam);
+    const LoopResult r = detector.Process(in);
+    std::printf("view %02lld: %-24s match=%lld matches=%d inliers=%d prior_err=%.1f\n",
+                (long long)in.id, ToString(r.status), (long long)r.match_id, r.matches, r.inliers,
+                r.rotation_error_vs_prior_deg);
+    if (r.detected()) loops.push_back(r);
+  }
+  ASSERT_EQ(loops.size(), 1u) << "exactly the ring closure, no false loop";
+  const LoopResult& loop = loops[0];
+  EXPECT_EQ(loop.query_id, 29);
+  EXPECT_TRUE(loop.match_id == 1 || loop.match_id == 2) << loop.match_id;
+  ASSERT_EQ(loop.pose_kind, RelativePoseKind::kSE3UnitTranslation);
+  const Rigid3d gt = frames[loop.match_id - 1].world_from_cam.Inverse() * frames[28].world_from_cam;
+  const double rot_err = Deg(RotationAngle(gt.rotation, loop.match_from_query.rotation));
+  const double dir_err = AngleBetween(gt.translation, loop.match_from_query.translation);
+  std::printf("castle 29->%lld: inliers %d, rotation error %.2f deg, direction error %.2f deg\n",
+              (long long)loop.match_id, loop.inliers, rot_err, dir_err);
+  EXPECT_LT(rot_err, 2.0);
+  EXPECT_LT(dir_err, 5.0);
+}
+
+class KittiNoLoop : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!std::filesystem::exists(test::DataDir() / "kitti07_first160")) return;
+    images_ = new std::vector<cv::Mat>(test::LoadKittiImages(160));
+    poses_ = new std::vector<Rigid3d>(
+        test::ReadKittiPoses(test::DataDir() / "kitti07_first160" / "07_first160_DERIVED.txt"));
+  }
+  static void TearDownTestSuite() {
+    delete images_;
+    delete poses_;
+    images_ = nullptr;
+    poses_ = nullptr;
+  }
+  static int CountLoops(const std::vector<Sim3d>& poses) {
+    LoopDetector detector(LoopDetector::Options{});
+    int loops = 0;
+    for (size_t i = 0; i < images_->size(); ++i) {
+      KeyframeInput in;
+      in.id = static_cast<int64_t>(i);
+      in.image = (*images_)[i];
+      in.intrinsics = test::KittiIntrinsics();
+      in.world_from_cam = poses[i];
+      const LoopResult r = detector.Process(in);
+      if (r.detected()) {
+        ++loops;
+        std::printf("false loop %lld -> %lld inliers %d\n", (long long)r.query_id,
+                    (long long)r.match_id, r.inliers);
+      }
+    }
+    return loops;
+  }
+  static std::vector<cv::Mat>* images_;
+  static std::vector<Rigid3d>* poses_;
+};
+std::vector<cv::Mat>* KittiNoLoop::images_ = nullptr;
+std::vector<Rigid3d>* KittiNoLoop::poses_ = nullptr;
+
+TEST_F(KittiNoLoop, ZeroLoopsWithGtPoses) {
+  SL_REQUIRE_DATA("kitti07_first160");
+  ASSERT_EQ(poses_->size(), 160u);
+  std::vector<Sim3d> poses;
+  for (const auto& p : *poses_) poses.emplace_back(p);
+  EXPECT_EQ(CountLoops(poses), 0);
+}
+
+TEST_F(KittiNoLoop, ZeroLoopsWithDriftedPoses) {
+  SL_REQUIRE_DATA("kitti07_first160");
+  ASSERT_EQ(poses_->size(), 160u);
+  // Monocular-like drift: a heading error growing 0.2 deg per frame about the vertical (camera
+  // -y) axis and a scale drifting by 0.5 % per frame, integrated along the GT increments.
+  std::vector<Sim3d> poses{Sim3d((*poses_)[0])};
+  for (size_t i = 1; i < poses_->size(); ++i) {
+    const Rigid3d step = (*poses_)[i - 1].Inverse() * (*poses_)[i];
+    const double s = std::pow(1.005, double(i));
+    Sim3d drift_step(1.0, ExpSO3(Eigen::Vector3d(0, 0.2 * M_PI / 180, 0)) * step.rotation,
+                     s * step.translation);
+    poses.push_back(poses.back() * drift_step);
+  }
+  EXPECT_EQ(CountLoops(poses), 0);
+}
+
+// EuRoC: body poses + T_BS extrinsic, radtan lens.
+Rigid3d EurocCam(double qw, double qx, double qy, double qz, double tx, double ty, double tz) {
+  Eigen::Matrix4d t_bs;
+  t_bs << 0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975, 0.999557249008,
+      0.0149672133247, 0.025715529948, -0.064676986768, -0.0257744366974, 0.00375618835797,
+      0.999660727178, 0.00981073058949, 0, 0, 0, 1;
+  const Rigid3d body_from_cam = Rigid3d::FromMatrix3x4(t_bs.topRows<3>(), 1e-4);
+  const Rigid3d world_from_body(Eigen::Quaterniond(qw, qx, qy, qz), Eigen::Vector3d(tx, ty, tz));
+  return world_from_body * body_from_cam;
+}
+
+TEST(LoopDetectorReal, EurocLoopPairsVerified) {
+  SL_REQUIRE_DATA("euroc_loop_pairs");
+  CameraIntrinsics k;
+  k.fx = 458.654;
+  k.fy = 457.296;
+  k.cx = 367.215;
+  k.cy = 248.375;
+  k.width = 752;
+  k.height = 480;
+  k.distortion_model = DistortionModel::kRadialTangential;
+  k.distortion = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
+  const std::vector<Rigid3d> gt = {
+      EurocCam(0.338337, 0.608466, -0.535476, 0.478082, 1.573832, 2.023348, 1.738755),
+      EurocCam(0.478634, 0.415595, -0.700197, 0.328505, 1.872115, 1.786064, 1.586159),
+      EurocCam(0.3394, -0.672895, -0.492724, -0.435018, -0.662997, -0.495046, 1.347300),
+      EurocCam(0.39266, -0.590667, -0.58023, -0.400326, -0.345638, -0.501712, 1.320441)};
+  for (int pair = 0; pair < 2; ++pair) {
+    const int m = 2 * pair, q = 2 * pair + 1;
+    LoopDetector::Options options;
+    options.search.strategy = SearchStrategy::kGlobal;  // two images: no trajectory to search
+    options.search.exclude_recent = 0;
+    options.min_path_ratio = 0;
+    LoopDetector detector(options);
+    LoopResult r;
+    for (int i : {m, q}) {
+      KeyframeInput in;
+      in.id = i;
+      in.image = cv::imread(
+          (test::DataDir() / "euroc_loop_pairs" / ("left_img_" + std::to_string(i) + ".png"))
+              .string(),
+          cv::IMREAD_GRAYSCALE);
+      in.intrinsics = k;
+      in.world_from_cam = Sim3d(gt[i]);
+      r = detector.Process(in);
+    }
+    const Rigid3d rel = gt[m].Inverse() * gt[q];
+    const double rot_err = Deg(RotationAngle(rel.rotation, r.match_from_query.rotation));
+    std::printf("euroc pair (%d,%d): %s inliers %d matches %d rotation error %.2f deg\n", m, q,
+                ToString(r.status), r.inliers, r.matches, rot_err);
+    ASSERT_TRUE(r.detected()) << ToString(r.status);
+    EXPECT_EQ(r.match_id, m);
+    EXPECT_LT(rot_err, 3.0);
+  }
+}
+
+}  // namespace
+}  // namespace sparseloop

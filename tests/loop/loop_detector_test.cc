@@ -1,0 +1,140 @@
+// Detector behaviour without real data: options, statuses, every-N rule, determinism.
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "sparseloop/loop/loop_detector.h"
+#include "test_util.h"
+
+namespace sparseloop {
+namespace {
+
+cv::Mat Textured(uint64_t seed) {
+  cv::Mat img(240, 320, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(img, img, cv::Size(5, 5), 1.5);
+  for (int i = 0; i < 60; ++i)
+    cv::circle(img, cv::Point(rng.uniform(0, 320), rng.uniform(0, 240)), rng.uniform(3, 15),
+               cv::Scalar(rng.uniform(0, 255)), cv::FILLED);
+  return img;
+}
+
+CameraIntrinsics Camera() {
+  CameraIntrinsics k;
+  k.fx = k.fy = 300;
+  k.cx = 160;
+  k.cy = 120;
+  k.width = 320;
+  k.height = 240;
+  return k;
+}
+
+LoopDetector::Options GlobalNoExclusion() {
+  LoopDetector::Options o;
+  o.search.strategy = SearchStrategy::kGlobal;
+  o.search.exclude_recent = 0;
+  o.min_path_ratio = 0;
+  return o;
+}
+
+KeyframeInput Input(int64_t id, const cv::Mat& image) {
+  KeyframeInput in;
+  in.id = id;
+  in.image = image;
+  in.intrinsics = Camera();
+  return in;
+}
+
+TEST(LoopDetector, OptionsCheck) {
+  EXPECT_NO_THROW(LoopDetector::Options{}.Check());
+  LoopDetector::Options o;
+  o.check_every = 0;
+  EXPECT_THROW(LoopDetector detector(o), std::invalid_argument);
+  o = {};
+  o.consistency_max_deg = 1;  // below base
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o = {};
+  o.features.max_features = 100;
+  o.min_inlier_fraction_of_k = 0.2;
+  EXPECT_EQ(o.EffectiveMinInliers(), 20);
+  o.features.max_features = 15;
+  EXPECT_EQ(o.EffectiveMinInliers(), o.verify.min_inliers);
+}
+
+TEST(LoopDetector, NoPoseNeedsGlobalSearchAndIdsAreUnique) {
+  LoopDetector paper(LoopDetector::Options{});  // default strategy: paper
+  EXPECT_THROW(paper.Process(Input(0, Textured(1))), std::invalid_argument);
+  LoopDetector global(GlobalNoExclusion());
+  EXPECT_EQ(global.Process(Input(0, Textured(1))).status, LoopStatus::kNoCandidates);
+  EXPECT_THROW(global.Process(Input(0, Textured(1))), std::invalid_argument);
+}
+
+TEST(LoopDetector, RevisitDetectedUnrelatedNot) {
+  LoopDetector detector(GlobalNoExclusion());
+  const cv::Mat a = Textured(1), b = Textured(2);
+  cv::Mat a_shifted;
+  cv::warpAffine(a, a_shifted, (cv::Mat_<double>(2, 3) << 1, 0, 6, 0, 1, -4), a.size(),
+                 cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  EXPECT_EQ(detector.Process(Input(10, a)).status, LoopStatus::kNoCandidates);
+  const LoopResult unrelated = detector.Process(Input(11, b));
+  EXPECT_FALSE(unrelated.detected()) << ToString(unrelated.status);
+  const LoopResult revisit = detector.Process(Input(12, a_shifted));
+  ASSERT_TRUE(revisit.detected()) << ToString(revisit.status);
+  EXPECT_EQ(revisit.match_id, 10);
+  EXPECT_GE(revisit.inliers, detector.options().EffectiveMinInliers());
+  EXPECT_GT(revisit.score, 0.0);
+  EXPECT_LE(revisit.score, 1.0);
+  EXPECT_GE(revisit.timings.total_ms, revisit.timings.extract_ms);
+  EXPECT_EQ(detector.num_keyframes(), 3u);
+  EXPECT_EQ(detector.StoredBytes(), detector.record(10).Bytes() + detector.record(11).Bytes() +
+                                        detector.record(12).Bytes());
+  EXPECT_THROW(detector.record(99), std::invalid_argument);
+}
+
+TEST(LoopDetector, CheckEveryNSkipsButStores) {
+  LoopDetector::Options o = GlobalNoExclusion();
+  o.check_every = 2;
+  LoopDetector detector(o);
+  const cv::Mat a = Textured(1);
+  EXPECT_EQ(detector.Process(Input(0, a)).status, LoopStatus::kSkipped);
+  const LoopResult second = detector.Process(Input(1, a));  // checked: matches keyframe 0
+  EXPECT_TRUE(second.detected()) << ToString(second.status);
+  EXPECT_EQ(detector.Process(Input(2, a)).status, LoopStatus::kSkipped);
+  EXPECT_EQ(detector.num_keyframes(), 3u);
+}
+
+TEST(LoopDetector, ConsistencyRejectsRotationDisagreeingWithPrior) {
+  LoopDetector::Options o = GlobalNoExclusion();
+  LoopDetector detector(o);
+  const cv::Mat a = Textured(3);
+  KeyframeInput first = Input(0, a);
+  first.world_from_cam = Sim3d();
+  detector.Process(first);
+  // Same image (relative rotation ~0), but the prior claims a 90 deg turn.
+  KeyframeInput second = Input(1, a);
+  second.world_from_cam =
+      Sim3d(1.0, ExpSO3(Eigen::Vector3d(0, M_PI / 2, 0)), Eigen::Vector3d(10, 0, 0));
+  const LoopResult r = detector.Process(second);
+  EXPECT_EQ(r.status, LoopStatus::kRejectedByConsistency);
+  EXPECT_NEAR(r.rotation_error_vs_prior_deg, 90.0, 2.0);
+}
+
+TEST(LoopDetector, Deterministic) {
+  auto run = [] {
+    LoopDetector detector(GlobalNoExclusion());
+    std::vector<LoopResult> out;
+    for (int i = 0; i < 4; ++i) out.push_back(detector.Process(Input(i, Textured(1 + i % 2))));
+    return out;
+  };
+  const auto a = run(), b = run();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].status, b[i].status);
+    EXPECT_EQ(a[i].match_id, b[i].match_id);
+    EXPECT_EQ(a[i].inliers, b[i].inliers);
+    EXPECT_EQ(a[i].match_from_query.rotation.coeffs(), b[i].match_from_query.rotation.coeffs());
+  }
+}
+
+}  // namespace
+}  // namespace sparseloop

@@ -1,0 +1,106 @@
+// rtabmap corridor: no poses (global search), unknown intrinsics (guessed), GT loop matrix.
+#include <cstdio>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "real_data.h"
+#include "sparseloop/loop/loop_detector.h"
+
+namespace sparseloop {
+namespace {
+
+struct PrNumbers {
+  int detections = 0;
+  int true_positives = 0;
+  int queries_with_gt = 0;
+  double precision = 1.0;
+  double recall = 0.0;
+  double recall_at_full_precision = 0.0;
+};
+
+PrNumbers RunRtabmap(const std::vector<cv::Mat>& images, const std::set<std::pair<int, int>>& gt,
+                     LoopDetector::Options options) {
+  options.search.strategy = SearchStrategy::kGlobal;  // no poses: documented input choice
+  LoopDetector detector(options);
+  std::vector<std::pair<double, bool>> scored;
+  std::set<int> queries_with_gt;
+  for (const auto& [q, m] : gt) queries_with_gt.insert(q);
+  PrNumbers pr;
+  for (size_t i = 0; i < images.size(); ++i) {
+    KeyframeInput in;
+    in.id = static_cast<int64_t>(i);
+    in.image = images[i];
+    in.intrinsics = test::GuessIntrinsics(images[i].cols, images[i].rows);
+    const LoopResult r = detector.Process(in);
+    if (!r.detected()) continue;
+    const bool ok = gt.count({int(r.query_id), int(r.match_id)}) > 0;
+    scored.emplace_back(r.score, ok);
+    ++pr.detections;
+    pr.true_positives += ok;
+    if (!ok)
+      std::printf("  false loop %lld -> %lld (inliers %d)\n", (long long)r.query_id + 1,
+                  (long long)r.match_id + 1, r.inliers);
+  }
+  pr.queries_with_gt = static_cast<int>(queries_with_gt.size());
+  pr.precision = pr.detections ? double(pr.true_positives) / pr.detections : 1.0;
+  pr.recall = double(pr.true_positives) / pr.queries_with_gt;
+  std::stable_sort(scored.begin(), scored.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  int tp = 0;
+  for (size_t i = 0; i < scored.size(); ++i) {
+    if (!scored[i].second) break;
+    tp += 1;
+    // Only cut between distinct scores.
+    if (i + 1 == scored.size() || scored[i + 1].first != scored[i].first)
+      pr.recall_at_full_precision = double(tp) / pr.queries_with_gt;
+  }
+  return pr;
+}
+
+TEST(RtabmapCorridor, PrecisionAndRecallOverK) {
+  SL_REQUIRE_DATA("rtabmap_corridor_loop");
+  const auto images = test::LoadRtabmap();
+  std::set<std::pair<int, int>> gt;
+  for (const auto& p : test::LoadRtabmapGt()) gt.insert(p);
+  ASSERT_EQ(gt.size(), 228u);
+  double best_recall = 0;
+  for (int k : {15, 50, 100, 300}) {
+    LoopDetector::Options options;
+    options.features.max_features = k;
+    const PrNumbers pr = RunRtabmap(images, gt, options);
+    std::printf(
+        "rtabmap K=%3d: detections %2d TP %2d precision %.3f recall %.3f "
+        "recall@100%%P %.3f (of %d queries)\n",
+        k, pr.detections, pr.true_positives, pr.precision, pr.recall, pr.recall_at_full_precision,
+        pr.queries_with_gt);
+    EXPECT_EQ(pr.precision, 1.0) << "K=" << k;
+    best_recall = std::max(best_recall, pr.recall_at_full_precision);
+  }
+  EXPECT_GE(best_recall, 0.9);
+}
+
+// The alternative for unknown intrinsics: the fundamental matrix (7 DoF, no pose). Measured next
+// to the essential matrix with guessed intrinsics above; numbers go to docs/DETECTOR.md.
+TEST(RtabmapCorridor, FundamentalMatrixAlternative) {
+  SL_REQUIRE_DATA("rtabmap_corridor_loop");
+  const auto images = test::LoadRtabmap();
+  std::set<std::pair<int, int>> gt;
+  for (const auto& p : test::LoadRtabmapGt()) gt.insert(p);
+  int best_tp = 0;
+  for (int k : {50, 300}) {
+    LoopDetector::Options options;
+    options.features.max_features = k;
+    options.verify.use_fundamental = true;
+    const PrNumbers pr = RunRtabmap(images, gt, options);
+    std::printf(
+        "rtabmap fundamental K=%3d: detections %2d TP %2d precision %.3f recall %.3f "
+        "recall@100%%P %.3f\n",
+        k, pr.detections, pr.true_positives, pr.precision, pr.recall, pr.recall_at_full_precision);
+    best_tp = std::max(best_tp, pr.true_positives);
+  }
+  EXPECT_GT(best_tp, 0);
+}
+
+}  // namespace
+}  // namespace sparseloop

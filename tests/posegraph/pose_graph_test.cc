@@ -1,0 +1,298 @@
+// Pose graph on synthetic drifting trajectories with ground truth, outlier loops, g2o parsing,
+// interpolation of non-keyframe poses and the direction-only loop constraint.
+#include <sstream>
+
+#include "loop_harness.h"
+#include "sparseloop/core/error.h"
+#include "sparseloop/posegraph/g2o.h"
+#include "sparseloop/posegraph/interpolation.h"
+#include "sparseloop/posegraph/pose_graph.h"
+#include "test_util.h"
+
+namespace sparseloop {
+namespace {
+
+// Two laps around a circle of radius 30 m (GT), and a raw monocular-like estimate that
+// integrates the true relative motions with rotation, scale and translation drift.
+struct Synthetic {
+  std::vector<Sim3d> gt;
+  std::vector<Sim3d> raw;
+};
+
+Synthetic MakeSynthetic(int per_lap, double laps, uint64_t seed) {
+  auto rng = test::SeededRng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  Synthetic s;
+  const int n = static_cast<int>(per_lap * laps);
+  const double radius = 30.0;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2.0 * M_PI * i / per_lap;
+    const Eigen::Vector3d p(radius * std::cos(a), radius * std::sin(a), 0.5 * std::sin(3 * a));
+    // Camera looks along the tangent (z forward), y down.
+    const Eigen::Vector3d fwd(-std::sin(a), std::cos(a), 0.0);
+    const Eigen::Vector3d down(0, 0, -1);
+    Eigen::Matrix3d r;
+    r.col(2) = fwd;
+    r.col(1) = down;
+    r.col(0) = down.cross(fwd);
+    s.gt.push_back(Sim3d(1.0, Eigen::Quaterniond(r), p));
+  }
+  s.raw.push_back(s.gt[0]);
+  double log_scale = 0.0;
+  for (int i = 1; i < n; ++i) {
+    Sim3d rel = s.gt[i - 1].Inverse() * s.gt[i];
+    Vector6d noise;
+    for (int k = 0; k < 3; ++k) noise[k] = 0.01 * n01(rng);
+    noise[3] = 0.002 * n01(rng);
+    noise[4] = 0.002 + 0.002 * n01(rng);  // yaw-like bias: heading drift
+    noise[5] = 0.002 * n01(rng);
+    log_scale += 0.002 + 0.003 * n01(rng);  // scale drift
+    const Rigid3d noisy = rel.ToRigid() * Rigid3d::Exp(noise);
+    s.raw.push_back(s.raw.back() *
+                    Sim3d(1.0, noisy.rotation, std::exp(log_scale) * noisy.translation));
+  }
+  return s;
+}
+
+PoseGraphOptions Plain() {
+  PoseGraphOptions o;
+  o.rejection = OutlierRejection::kNone;
+  o.loop_loss = RobustLoss::kTrivial;
+  return o;
+}
+
+TEST(PoseGraph, CorrectsSyntheticSim3DriftWithLoops) {
+  const Synthetic s = MakeSynthetic(150, 2.3, 1);
+  auto rng = test::SeededRng(11);
+  test::LoopHarnessOptions ho;
+  ho.distance = 3.0;
+  ho.min_gap = 100;
+  ho.query_stride = 5;
+  const test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
+  ASSERT_GE(loops.loops.size(), 10u);
+  const double raw_ate = test::AlignedAte(s.raw, s.gt);
+  const auto result = test::CorrectAndScore(s.raw, s.gt, loops.loops, PoseGraphOptions{});
+  std::cerr << "synthetic: raw ATE " << raw_ate << " m, corrected " << result.ate << " m, "
+            << result.summary.BriefReport() << "\n";
+  EXPECT_NE(result.summary.status, PoseGraphStatus::kFailed);
+  EXPECT_TRUE(result.summary.rejected_loops.empty());
+  EXPECT_LT(result.ate, 0.2 * raw_ate);
+}
+
+TEST(PoseGraph, FalseLoopsAreRejectedAndDoNotPullTheMapApart) {
+  const Synthetic s = MakeSynthetic(150, 2.3, 2);
+  auto rng = test::SeededRng(12);
+  test::LoopHarnessOptions ho;
+  ho.distance = 3.0;
+  ho.min_gap = 100;
+  ho.query_stride = 5;
+  ho.outlier_fraction = 0.2;
+  const test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
+  const double raw_ate = test::AlignedAte(s.raw, s.gt);
+  PoseGraphOptions pcm;  // default: PCM + Cauchy
+  PoseGraphOptions sc;
+  sc.rejection = OutlierRejection::kSwitchable;
+  const auto r_pcm = test::CorrectAndScore(s.raw, s.gt, loops.loops, pcm);
+  const auto r_sc = test::CorrectAndScore(s.raw, s.gt, loops.loops, sc);
+  const auto r_plain = test::CorrectAndScore(s.raw, s.gt, loops.loops, Plain());
+  std::cerr << "synthetic 20% false loops: raw " << raw_ate << ", PCM " << r_pcm.ate
+            << ", switchable " << r_sc.ate << ", plain LS " << r_plain.ate << "\n";
+  EXPECT_LT(r_pcm.ate, 0.4 * raw_ate);
+  EXPECT_GT(r_plain.ate, 2.0 * r_pcm.ate);
+  // Every false loop is reported rejected by PCM; few true ones are lost.
+  size_t false_kept = 0, true_rejected = 0;
+  std::vector<bool> rejected(loops.loops.size(), false);
+  for (size_t k : r_pcm.summary.rejected_loops) rejected[k] = true;
+  for (size_t k = 0; k < loops.loops.size(); ++k) {
+    if (loops.is_false[k] && !rejected[k]) ++false_kept;
+    if (!loops.is_false[k] && rejected[k]) ++true_rejected;
+  }
+  EXPECT_EQ(false_kept, 0u);
+  EXPECT_LE(true_rejected, loops.loops.size() / 5);
+  ASSERT_EQ(r_pcm.summary.rejected_loops.size(), r_pcm.summary.rejected_loop_ids.size());
+  for (size_t i = 0; i < r_pcm.summary.rejected_loops.size(); ++i) {
+    const LoopConstraint& l = loops.loops[r_pcm.summary.rejected_loops[i]];
+    EXPECT_EQ(r_pcm.summary.rejected_loop_ids[i].query, l.query_id);
+    EXPECT_EQ(r_pcm.summary.rejected_loop_ids[i].match, l.match_id);
+  }
+}
+
+// Kimera-RPGO style: two consistent loops are kept, an inconsistent one is dropped.
+TEST(Pcm, ConsistentLoopsKeptInconsistentDropped) {
+  const Synthetic s = MakeSynthetic(100, 2.0, 3);
+  std::vector<int64_t> ids(s.gt.size());
+  for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int64_t>(i);
+  // Use the GT as "raw" so exact loops are perfectly consistent with odometry.
+  PoseGraph graph = BuildOdometryGraph(ids, s.gt, VertexType::kSim3);
+  auto exact = [&](int64_t q, int64_t m) {
+    LoopConstraint l;
+    l.query_id = q;
+    l.match_id = m;
+    l.match_from_query = s.gt[m].Inverse() * s.gt[q];
+    l.information = LoopInformation(0.05, 0.01, 0.01);
+    return l;
+  };
+  graph.AddLoop(exact(150, 50));
+  graph.AddLoop(exact(170, 70));
+  LoopConstraint bad = exact(160, 20);  // places 60 m apart
+  bad.match_from_query = s.gt[60].Inverse() * s.gt[160];
+  graph.AddLoop(bad);
+  const std::vector<size_t> kept = graph.PcmConsistentLoops(PcmOptions{});
+  EXPECT_EQ(kept, (std::vector<size_t>{0, 1}));
+  const PoseGraphSummary summary = graph.Optimize(PoseGraphOptions{});
+  ASSERT_EQ(summary.rejected_loops, std::vector<size_t>{2});
+  EXPECT_EQ(summary.rejected_loop_ids[0], (LoopPair{160, 20}));
+}
+
+TEST(PoseGraph, GaugeVertexStaysFixedAndOptionsAreChecked) {
+  const Synthetic s = MakeSynthetic(60, 1.5, 4);
+  std::vector<int64_t> ids(s.raw.size());
+  for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int64_t>(100 + i);
+  PoseGraph graph = BuildOdometryGraph(ids, s.raw, VertexType::kSim3);
+  LoopConstraint l;
+  l.query_id = ids[70];
+  l.match_id = ids[10];
+  l.match_from_query = s.gt[10].Inverse() * s.gt[70];
+  graph.AddLoop(l);
+  graph.SetFixedVertex(ids[5]);
+  const Sim3d before = graph.Pose(ids[5]);
+  const PoseGraphSummary summary = graph.Optimize(PoseGraphOptions{});
+  EXPECT_NE(summary.status, PoseGraphStatus::kFailed);
+  EXPECT_LT(summary.final_cost, summary.initial_cost);
+  EXPECT_LT((graph.Pose(ids[5]).ToVector() - before.ToVector()).norm(), 1e-12);
+  EXPECT_GT((graph.Pose(ids[0]).ToVector() - s.raw[0].ToVector()).norm(), 1e-6);
+
+  PoseGraphOptions bad;
+  bad.max_iterations = 0;
+  EXPECT_THROW(graph.Optimize(bad), std::invalid_argument);
+  EXPECT_THROW(graph.AddVertex(ids[0], Sim3d()), std::invalid_argument);
+  LoopConstraint unknown = l;
+  unknown.query_id = 99999;
+  EXPECT_THROW(graph.AddLoop(unknown), std::invalid_argument);
+  PoseGraph empty;
+  EXPECT_EQ(empty.Optimize(PoseGraphOptions{}).status, PoseGraphStatus::kNothingToDo);
+}
+
+TEST(PoseGraph, Se3GraphKeepsUnitScale) {
+  const Synthetic s = MakeSynthetic(60, 1.5, 5);
+  std::vector<int64_t> ids(s.raw.size());
+  std::vector<Sim3d> metric;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    ids[i] = static_cast<int64_t>(i);
+    metric.push_back(Sim3d(s.raw[i].ToRigid()));
+  }
+  PoseGraph graph = BuildOdometryGraph(ids, metric, VertexType::kSe3);
+  LoopConstraint l;
+  l.query_id = 70;
+  l.match_id = 10;
+  l.match_from_query = Sim3d((s.gt[10].Inverse() * s.gt[70]).ToRigid());
+  graph.AddLoop(l);
+  graph.Optimize(PoseGraphOptions{});
+  for (int64_t id : ids) ASSERT_NEAR(graph.Pose(id).scale, 1.0, 1e-12);
+}
+
+TEST(G2o, MalformedFilesThrowFileErrorWithLine) {
+  const std::pair<std::string, int> cases[] = {
+      {"VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0\n", 2},
+      {"VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nEDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0\n", 2},
+      {"# comment\nVERTEX_SE3:QUAT 0 0 0 0 0 0 0 2\n", 2},
+      {"VERTEX_SE2 0 0 0 0\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n", 2},
+      {"VERTEX_SE2 0 0 0 0\n\nFOO 1 2\n", 3},
+      {"VERTEX_SE2 0 0 0 x\n", 1},
+      {"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n", 2},
+      {"VERTEX_SE2 0 0 0 0 7\n", 1},
+  };
+  for (const auto& [text, line] : cases) {
+    std::istringstream in(text);
+    try {
+      ReadG2o(in, "bad.g2o");
+      ADD_FAILURE() << "no error for:\n" << text;
+    } catch (const FileError& e) {
+      EXPECT_EQ(e.line(), line) << text << "\n" << e.what();
+      EXPECT_EQ(e.file(), "bad.g2o");
+    }
+  }
+  EXPECT_THROW(ReadG2o(test::TempDir() / "missing.g2o"), FileError);
+}
+
+TEST(G2o, Se2KnownAnswerAndChainedInitialisation) {
+  // Edges only: vertices are chained from the lowest id.
+  std::istringstream in(
+      "EDGE_SE2 0 1 1 0 1.5707963267948966 1 0 0 1 0 1\n"
+      "EDGE_SE2 1 2 1 0 0 1 0 0 1 0 1\n");
+  const PoseGraph g = ReadG2o(in, "chain.g2o");
+  ASSERT_EQ(g.num_vertices(), 3u);
+  EXPECT_LT((g.Pose(1).translation - Eigen::Vector3d(1, 0, 0)).norm(), 1e-12);
+  EXPECT_LT((g.Pose(2).translation - Eigen::Vector3d(1, 1, 0)).norm(), 1e-12);
+  std::stringstream out;
+  WriteG2o(out, g);
+  const PoseGraph again = ReadG2o(out, "again.g2o");
+  EXPECT_LT((again.Pose(2).translation - Eigen::Vector3d(1, 1, 0)).norm(), 1e-12);
+  EXPECT_EQ(again.edges()[0].information(5, 5), 1.0);
+}
+
+TEST(Interpolation, KeyframesGetTheirCorrectionAndConstantDeltaIsExact) {
+  auto rng = test::SeededRng(7);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  auto random_sim3 = [&] {
+    Vector7d t;
+    for (int i = 0; i < 7; ++i) t[i] = (i == 6 ? 0.2 : 1.0) * n01(rng);
+    return Sim3d::Exp(t);
+  };
+  std::vector<StampedSim3> raw_kf, corrected_kf, frames;
+  const Sim3d delta = random_sim3();
+  for (int k = 0; k < 5; ++k) {
+    const Sim3d p = random_sim3();
+    raw_kf.push_back({1.0 * k, p});
+    corrected_kf.push_back({1.0 * k, delta * p});
+  }
+  for (int f = -2; f < 12; ++f) frames.push_back({0.4 * f, random_sim3()});
+  const auto out = CorrectFramePoses(raw_kf, corrected_kf, frames);
+  ASSERT_EQ(out.size(), frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Sim3d expected = delta * frames[i].world_from_cam;
+    EXPECT_LT((out[i].world_from_cam.ToMatrix4() - expected.ToMatrix4()).norm(), 1e-9);
+  }
+  // Varying delta: at keyframe times the corrected keyframe pose is returned exactly, midway the
+  // geodesic midpoint of the two deltas is applied.
+  corrected_kf[2].world_from_cam = random_sim3() * raw_kf[2].world_from_cam;
+  const auto at_kf = CorrectFramePoses(raw_kf, corrected_kf, raw_kf);
+  for (size_t k = 0; k < raw_kf.size(); ++k) {
+    EXPECT_LT((at_kf[k].world_from_cam.ToMatrix4() - corrected_kf[k].world_from_cam.ToMatrix4())
+                  .norm(),
+              1e-9);
+  }
+  const Sim3d d1 = corrected_kf[1].world_from_cam * raw_kf[1].world_from_cam.Inverse();
+  const Sim3d d2 = corrected_kf[2].world_from_cam * raw_kf[2].world_from_cam.Inverse();
+  const Sim3d mid = InterpolateSim3(d1, d2, 0.5);
+  // The midpoint is equidistant from both ends on the manifold.
+  EXPECT_NEAR((d1.Inverse() * mid).Log().norm(), (mid.Inverse() * d2).Log().norm(), 1e-9);
+  const auto at_mid = CorrectFramePoses(raw_kf, corrected_kf, {{1.5, raw_kf[0].world_from_cam}});
+  EXPECT_LT(
+      (at_mid[0].world_from_cam.ToMatrix4() - (mid * raw_kf[0].world_from_cam).ToMatrix4()).norm(),
+      1e-9);
+  EXPECT_THROW(CorrectFramePoses(raw_kf, {}, frames), std::invalid_argument);
+}
+
+TEST(DirectionLoop, MagnitudeFromLocalStepAndNoScaleInformation) {
+  const Eigen::Quaterniond rot(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()));
+  const Eigen::Vector3d dir = Eigen::Vector3d(1, 2, 2) / 3.0;
+  DirectionLoopOptions o;
+  o.baseline_in_steps = 2.0;
+  const LoopConstraint l = MakeLoopConstraintFromDirection(10, 2, Sim3d(), Sim3d(), rot, dir, 0.5, o);
+  EXPECT_FALSE(l.has_scale);
+  EXPECT_EQ(l.query_id, 10);
+  EXPECT_EQ(l.match_id, 2);
+  EXPECT_LT((l.match_from_query.translation - 1.0 * dir).norm(), 1e-12);
+  EXPECT_NEAR(l.match_from_query.scale, 1.0, 1e-15);
+  EXPECT_EQ(l.information(6, 6), 0.0);
+  // Less information along the direction than across it.
+  const Eigen::Matrix3d it = l.information.topLeftCorner<3, 3>();
+  const Eigen::Vector3d perp = dir.cross(Eigen::Vector3d::UnitX()).normalized();
+  EXPECT_LT(dir.dot(it * dir), perp.dot(it * perp));
+  EXPECT_THROW(MakeLoopConstraintFromDirection(10, 2, Sim3d(), Sim3d(), rot, 2 * dir, 0.5, o),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace sparseloop

@@ -1,0 +1,196 @@
+#pragma once
+// Brute-force oracle of the search-area definition in docs/SEARCH_AREA.md: loops over every
+// segment and every keyframe, no grid, no pruning. Used to check SearchArea exactly.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "sparseloop/search/search_area.h"
+
+namespace sparseloop::test {
+
+struct OracleAnswer {
+  std::vector<int> candidates;  // keyframe indices, ascending
+  SearchAreaStatus status = SearchAreaStatus::kTooShort;
+  PaperBranch branch = PaperBranch::kNotRun;
+  int start = -1;  // index
+  int end = -1;    // index
+};
+
+namespace oracle_detail {
+inline double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
+// s >= 0 on the ray origin + s dir where it meets a + l (b - a), l in [0,1] (or l >= 0).
+inline double Intersect(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir,
+                        const Eigen::Vector2d& a, const Eigen::Vector2d& b, bool half_line) {
+  const Eigen::Vector2d e = b - a;
+  const double denom = Cross(dir, e);
+  if (std::abs(denom) <= 1e-12 * e.norm()) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector2d w = a - origin;
+  const double s = Cross(w, e) / denom;
+  const double l = Cross(w, dir) / denom;
+  if (s < 0.0 || l < 0.0 || (!half_line && l > 1.0)) return std::numeric_limits<double>::infinity();
+  return s;
+}
+inline double DistToRay(const Eigen::Vector2d& w, const Eigen::Vector2d& dir) {
+  return (w - std::max(0.0, w.dot(dir)) * dir).norm();
+}
+inline bool InWedge(const Eigen::Vector2d& w, const Eigen::Vector2d& dir, double alpha, int side) {
+  if (w.squaredNorm() == 0.0) return true;
+  const double theta = std::atan2(Cross(dir, w), dir.dot(w));
+  if (side == 0) return std::abs(theta) <= alpha + 1e-9;
+  return side * theta >= -1e-9 && side * theta <= alpha + 1e-9;
+}
+inline Eigen::Vector2d Rot(const Eigen::Vector2d& d, double a) {
+  return {std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y()};
+}
+}  // namespace oracle_detail
+
+// positions[0..t] are the keyframes added so far (at least up to t); `plane` the frame the
+// SearchArea used; `loop_index` the index of the last accepted loop query (0 if none).
+inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& positions,
+                                         const PlaneFrame& plane, const SearchAreaOptions& o, int t,
+                                         int loop_index) {
+  using namespace oracle_detail;
+  const double inf = std::numeric_limits<double>::infinity();
+  OracleAnswer ans;
+  std::vector<Eigen::Vector2d> q;
+  std::vector<double> L;
+  for (int k = 0; k <= t; ++k) {
+    q.push_back(plane.Project(positions[k]));
+    L.push_back(k == 0 ? 0.0 : L.back() + (positions[k] - positions[k - 1]).norm());
+  }
+  const double travelled = std::max(0.0, L[t] - L[std::min(loop_index, t)]);
+  const double margin = o.strategy == SearchStrategy::kGlobal ? 0.0 : o.drift_tolerance * travelled;
+  const int E = std::max(0, t - o.exclude_recent);
+  if (E <= 0) return ans;
+  auto done = [&](std::vector<int> c) {
+    ans.candidates = std::move(c);
+    ans.status = ans.candidates.empty() ? SearchAreaStatus::kEmpty : SearchAreaStatus::kOk;
+    return ans;
+  };
+  std::vector<int> c;
+  if (o.strategy == SearchStrategy::kGlobal) {
+    for (int k = 0; k < E; ++k) c.push_back(k);
+    return done(c);
+  }
+  if (o.strategy == SearchStrategy::kRadius) {
+    for (int k = 0; k < E; ++k) {
+      const double d =
+          o.radius_in_plane ? (q[k] - q[t]).norm() : (positions[k] - positions[t]).norm();
+      if (d <= o.radius + margin) c.push_back(k);
+    }
+    return done(c);
+  }
+  Eigen::Vector2d dir = Eigen::Vector2d::Zero();
+  for (int j = t - 1; j >= 0 && j >= t - o.motion_lookback; --j) {
+    if ((q[t] - q[j]).norm() >= o.min_motion) {
+      dir = (q[t] - q[j]).normalized();
+      break;
+    }
+  }
+  if (dir.isZero()) {
+    ans.status = SearchAreaStatus::kNoMotion;
+    return ans;
+  }
+  // First hit over ALL eligible segments, then the backward half-line (index 0 wins ties).
+  double best_s = inf;
+  int best_seg = -1;
+  for (int k = 1; k < E; ++k) {
+    const double s = Intersect(q[t], dir, q[k - 1], q[k], false);
+    if (s < best_s) {  // ascending k: the smallest index wins a tie
+      best_s = s;
+      best_seg = k;
+    }
+  }
+  for (int j = 1; j <= std::min(E - 1, o.motion_lookback); ++j) {
+    if ((q[0] - q[j]).norm() >= o.min_motion) {
+      const double s = Intersect(q[t], dir, q[0], q[0] + (q[0] - q[j]).normalized(), true);
+      if (s <= best_s && s < inf) {
+        best_s = s;
+        best_seg = 0;
+      }
+      break;
+    }
+  }
+  auto nearest = [&](const Eigen::Vector2d& x) {
+    int best = -1;
+    double bd = inf;
+    for (int k = 0; k < E; ++k) {
+      const double d2 = (q[k] - x).squaredNorm();
+      if (d2 < bd) {
+        bd = d2;
+        best = k;
+      }
+    }
+    return best;
+  };
+  int lo = 0, hi = 0, side = 0;
+  Eigen::Vector2d p = Eigen::Vector2d::Zero();
+  if (best_seg < 0) {
+    ans.branch = PaperBranch::kNoIntersection;
+    hi = std::min(E - 1, o.fallback_count - 1);
+  } else {
+    ans.branch = best_seg == 0 ? PaperBranch::kBackwardRayHit : PaperBranch::kSegmentHit;
+    p = q[t] + best_s * dir;
+    ans.start = nearest(p);
+    const Eigen::Vector2d n(-dir.y(), dir.x());
+    double sl = inf, sr = inf;
+    int kl = -1, kr = -1;
+    for (int k = 1; k < E; ++k) {
+      const double a = Intersect(q[t], n, q[k - 1], q[k], false);
+      const double b = Intersect(q[t], -n, q[k - 1], q[k], false);
+      if (a < sl) sl = a, kl = k;
+      if (b < sr) sr = b, kr = k;
+    }
+    if (kl >= 0 || kr >= 0) {
+      side = sl <= sr ? 1 : -1;
+      ans.end = nearest(q[t] + (side > 0 ? sl : sr) * side * n);
+      lo = std::min(ans.start, ans.end);
+      hi = std::max(ans.start, ans.end);
+    } else {
+      lo = std::max(0, ans.start - o.fallback_count / 2);
+      hi = std::min(E - 1, ans.start + o.fallback_count / 2);
+    }
+  }
+  // Widen the index range by `margin` of path length.
+  int lo2 = lo, hi2 = hi;
+  for (int k = 0; k <= lo; ++k) {
+    if (L[k] >= L[lo] - margin) {
+      lo2 = k;
+      break;
+    }
+  }
+  for (int k = hi; k < E; ++k) {
+    if (L[k] <= L[hi] + margin) hi2 = k;
+  }
+  if (ans.branch == PaperBranch::kNoIntersection) {
+    for (int k = lo2; k <= hi2; ++k) c.push_back(k);
+    return done(c);
+  }
+  const double alpha = o.alpha_deg * 3.14159265358979323846 / 180.0;
+  const Eigen::Vector2d b1 = side == 0 ? Rot(dir, -alpha) : dir;
+  const Eigen::Vector2d b2 = Rot(dir, side == 0 ? alpha : side * alpha);
+  for (int k = 0; k < E; ++k) {
+    const Eigen::Vector2d w = q[k] - q[t];
+    bool in = k == ans.start || k == ans.end;
+    if (!in && k >= lo2 && k <= hi2) {
+      in = InWedge(w, dir, alpha, side) ||
+           (margin > 0.0 && std::min(DistToRay(w, b1), DistToRay(w, b2)) <= margin);
+    }
+    if (!in && margin > 0.0) {  // within margin of the segment x'_t -> p
+      const Eigen::Vector2d e = p - q[t];
+      const double l2 = e.squaredNorm();
+      const double u = l2 > 0 ? std::clamp(w.dot(e) / l2, 0.0, 1.0) : 0.0;
+      in = (w - u * e).norm() <= margin;
+    }
+    if (in) c.push_back(k);
+  }
+  return done(c);
+}
+
+}  // namespace sparseloop::test
