@@ -178,7 +178,6 @@ BENCHMARK(BM_QueryStoredKeyframes)
     ->Args({100000, 50})
     ->Args({1000, 300})
     ->Args({10000, 300})
-    ->Args({100000, 300})
     ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

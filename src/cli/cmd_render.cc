@@ -34,7 +34,7 @@ int RunRender(int argc, char** argv) {
   CLI::App app{"Render a synthetic sequence (KITTI folder layout) with exact ground truth"};
   std::string world_name, trajectory_path, plan_name = "circuit", textures_dir, texture_filter;
   std::string raw_path, out_dir, raw_format = "auto";
-  int frames = 0, threads = 2, kitti_sequence = -1;
+  int frames = 0, threads = 2, kitti_sequence = -1, start = 0, step = 1;
   uint64_t seed = 1;
   syn::FlightPlanOptions plan;
   syn::SequenceOptions seq;
@@ -50,6 +50,9 @@ int RunRender(int argc, char** argv) {
   app.add_option("--texture-filter", texture_filter,
                  "comma-separated substrings; only matching texture file names are used");
   app.add_option("--frames", frames, "frames to render (0: all poses / the plan's default)");
+  app.add_option("--start", start, "first pose of --trajectory to render (the world is still "
+                                   "built from the whole trajectory)")->capture_default_str();
+  app.add_option("--step", step, "render every step-th pose")->capture_default_str();
   app.add_option("--seed", seed, "seed of the world, noise and drift")->capture_default_str();
   app.add_option("--threads", threads, "frames rendered in parallel")->capture_default_str();
   app.add_option("--altitude", plan.altitude, "aerial: metres above ground")->capture_default_str();
@@ -122,6 +125,15 @@ int RunRender(int argc, char** argv) {
     syn::StreetWorldOptions options;
     options.seed = syn::HashCombine(seed, 6);
     world = syn::MakeStreetWorld(gt, textures, options);  // the whole trajectory shapes the world
+  }
+  SL_CHECK_MSG(start >= 0 && static_cast<size_t>(start) < gt.size(),
+               "--start {} outside the trajectory of {} poses", start, gt.size());
+  SL_CHECK_MSG(step >= 1, "--step must be >= 1, got {}", step);
+  if (start > 0 || step > 1) {
+    Trajectory picked = gt;
+    picked.poses.clear();
+    for (size_t i = start; i < gt.size(); i += step) picked.poses.push_back(gt.poses[i]);
+    gt = std::move(picked);
   }
   if (frames > 0 && static_cast<size_t>(frames) < gt.size()) gt.poses.resize(frames);
   std::optional<Trajectory> raw;

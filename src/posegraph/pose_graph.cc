@@ -135,12 +135,17 @@ std::string PoseGraphSummary::BriefReport() const {
 }
 
 void PoseGraph::AddVertex(int64_t id, const Sim3d& world_from_vertex) {
+  AddVertex(id, world_from_vertex, world_from_vertex);
+}
+
+void PoseGraph::AddVertex(int64_t id, const Sim3d& world_from_vertex,
+                          const Sim3d& raw_world_from_vertex) {
   SL_CHECK_MSG(!HasVertex(id), "duplicate vertex id {}", id);
   index_[id] = ids_.size();
   ids_.push_back(id);
   params_.push_back(world_from_vertex.ToVector());
   poses_.push_back(world_from_vertex);
-  raw_poses_.push_back(world_from_vertex);
+  raw_poses_.push_back(raw_world_from_vertex);
 }
 
 size_t PoseGraph::Index(int64_t id) const {

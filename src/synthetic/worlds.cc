@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include "sparseloop/core/check.h"
@@ -339,9 +340,12 @@ World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const Textur
       Quad q;
       q.axis_u = u;
       q.axis_v = lat;
-      q.size_u = L + 2 * overlap;
+      // The first and last strips reach 30 m beyond the trajectory ends.
+      const double before = s == 0 ? 30.0 : overlap;
+      const double after = s + 2 == cuts.size() ? 30.0 : overlap;
+      q.size_u = L + before + after;
       q.size_v = 2 * o.ground_half_width;
-      q.origin = A + g - overlap * u - o.ground_half_width * lat;
+      q.origin = A + g - before * u - o.ground_half_width * lat;
       q.material = 0;
       q.tex_origin = Eigen::Vector3d::Zero();
       q.tex_u = tex_u;
@@ -384,15 +388,15 @@ World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const Textur
       world.quads.push_back(q);
     }
   }
-  // Fallback ground plane (seen through gaps) at the median road height.
-  std::vector<double> heights;
-  for (const auto& p : positions) heights.push_back(p.dot(down));
-  std::nth_element(heights.begin(), heights.begin() + heights.size() / 2, heights.end());
+  // Fallback ground plane, seen only through gaps between strips: below the LOWEST road point so
+  // that it can never hang above a camera on a hilly trajectory.
+  double lowest = -std::numeric_limits<double>::infinity();
+  for (const auto& p : positions) lowest = std::max(lowest, p.dot(down));
   Quad plane;
   plane.infinite = true;
   plane.axis_u = tex_u;
   plane.axis_v = tex_v;
-  plane.origin = (heights[heights.size() / 2] + o.camera_height + 0.05) * down;
+  plane.origin = (lowest + o.camera_height + 0.5) * down;
   plane.material = 0;
   plane.tex_u = tex_u;
   plane.tex_v = tex_v;

@@ -2,6 +2,7 @@
 #include <fstream>
 #include <string>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -17,6 +18,16 @@ nlohmann::json ReadJson(const std::filesystem::path& path) {
   std::ifstream in(path);
   EXPECT_TRUE(in.good()) << path;
   return nlohmann::json::parse(in);
+}
+
+// RunCli() itself calls TempDir(), which empties the test's temp folder, so input fixtures live in
+// a sibling folder that RunCli does not touch.
+std::filesystem::path FixtureDir() {
+  auto dir = TempDir();
+  dir += "_fixtures";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
 }
 
 double Rel(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
@@ -77,7 +88,7 @@ void WriteHandMadePositions(const std::filesystem::path& path) {
 }
 
 TEST(CliEval, LoopPrecisionRecall) {
-  const auto dir = TempDir();
+  const auto dir = FixtureDir();
   WriteHandMadePositions(dir / "gt.txt");
   {
     std::ofstream out(dir / "loops.csv");
@@ -97,11 +108,13 @@ TEST(CliEval, LoopPrecisionRecall) {
   EXPECT_DOUBLE_EQ(j["loop_recall"].get<double>(), 0.5);
   EXPECT_DOUBLE_EQ(j["loop_recall_at_100p"].get<double>(), 0.5);
   EXPECT_DOUBLE_EQ(j["ate_rmse_m"].get<double>(), 0.0);
-  EXPECT_TRUE(j["kitti_t_err_pct"].is_null());  // far shorter than 100 m
+  // Path 50 + 49.5 + 19.7 = 119.2 m: a single 100 m segment (frames 0 -> 7), error-free.
+  EXPECT_EQ(j["kitti"]["num_segments"].get<size_t>(), 1u);
+  EXPECT_DOUBLE_EQ(j["kitti_t_err_pct"].get<double>(), 0.0);
 }
 
 TEST(CliEval, MalformedInputExits2WithFileAndLine) {
-  const auto dir = TempDir();
+  const auto dir = FixtureDir();
   WriteHandMadePositions(dir / "gt.txt");
   {
     std::ofstream out(dir / "bad.txt");
@@ -132,7 +145,7 @@ TEST(CliEval, MalformedInputExits2WithFileAndLine) {
 }
 
 TEST(CliEval, MissingFileExits2) {
-  const auto dir = TempDir();
+  const auto dir = FixtureDir();
   WriteHandMadePositions(dir / "gt.txt");
   const auto r = RunCli(
       {"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "does_not_exist.txt").string()});

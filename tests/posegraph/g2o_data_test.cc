@@ -38,7 +38,10 @@ TEST(G2oData, SphereBignoiseConverges) {
   SL_REQUIRE_DATA("pose_graphs/sphere_bignoise_vertex3.g2o");
   PoseGraph graph = ReadG2o(Graphs() / "sphere_bignoise_vertex3.g2o");
   EXPECT_EQ(graph.num_vertices(), 2200u);
-  const PoseGraphSummary s = graph.Optimize(PlainOptions());
+  // A hard instance (big initial noise): LM needs ~170 iterations (~35 s CPU).
+  PoseGraphOptions options = PlainOptions();
+  options.max_iterations = 300;
+  const PoseGraphSummary s = graph.Optimize(options);
   std::cerr << s.BriefReport() << "\n";
   EXPECT_EQ(s.status, PoseGraphStatus::kConverged);
   EXPECT_LT(s.final_cost, 0.5 * s.initial_cost);

@@ -160,7 +160,10 @@ TEST(PoseGraph, GaugeVertexStaysFixedAndOptionsAreChecked) {
   EXPECT_NE(summary.status, PoseGraphStatus::kFailed);
   EXPECT_LT(summary.final_cost, summary.initial_cost);
   EXPECT_LT((graph.Pose(ids[5]).ToVector() - before.ToVector()).norm(), 1e-12);
-  EXPECT_GT((graph.Pose(ids[0]).ToVector() - s.raw[0].ToVector()).norm(), 1e-6);
+  // Vertices before the fixed one are tied to it by odometry only and stay; those inside the
+  // loop move.
+  EXPECT_LT((graph.Pose(ids[0]).ToVector() - s.raw[0].ToVector()).norm(), 1e-9);
+  EXPECT_GT((graph.Pose(ids[40]).ToVector() - s.raw[40].ToVector()).norm(), 1e-3);
 
   PoseGraphOptions bad;
   bad.max_iterations = 0;

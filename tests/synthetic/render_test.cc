@@ -84,7 +84,7 @@ TEST(Render, TiltedDepthMatchesRayPlaneOracle) {
   const auto f = RenderFrame(world, cam, pose, {});
   for (int v = 0; v < cam.height; v += 7)
     for (int u = 0; u < cam.width; u += 7) {
-      const Eigen::Vector3d d_cam = cam.Unproject({u, v}).homogeneous();
+      const Eigen::Vector3d d_cam = cam.Unproject(Eigen::Vector2d(u, v)).homogeneous();
       const Eigen::Vector3d d_world = pose.rotation * d_cam;
       // Oracle: plane z = 0, z-depth = camera height / (-d_world.z) for the z=1 ray.
       const double expected = pose.translation.z() / -d_world.z();
@@ -109,7 +109,7 @@ TEST(Render, ReprojectionThroughDepthLandsOnTheSameTexturePoint) {
     for (int u = 10; u < cam.width - 10; u += 3) {
       const double depth = fa.depth.at(u, v);
       ASSERT_GT(depth, 0.0);
-      const Eigen::Vector3d p_in_world = a * (depth * cam.Unproject({u, v}).homogeneous());
+      const Eigen::Vector3d p_in_world = a * (depth * cam.Unproject(Eigen::Vector2d(u, v)).homogeneous());
       // The depth map is exact: tracing the same ray hits the same point.
       const Hit hit_a = world.Trace(a.translation, p_in_world - a.translation);
       ASSERT_LT((hit_a.p_in_world - p_in_world).norm(), 1e-6);

@@ -136,6 +136,9 @@ class PoseGraph {
 
   // Adds a vertex; its pose is also remembered as the raw (initial) pose that PCM uses.
   void AddVertex(int64_t id, const Sim3d& world_from_vertex);
+  // Initial estimate and raw pose differ when a keyframe arrives after a correction: the estimate
+  // is the corrected chain, the raw pose is what odometry said (PCM compares loops on raw poses).
+  void AddVertex(int64_t id, const Sim3d& world_from_vertex, const Sim3d& raw_world_from_vertex);
   bool HasVertex(int64_t id) const { return index_.count(id) > 0; }
   const Sim3d& Pose(int64_t id) const;
   const Sim3d& RawPose(int64_t id) const;

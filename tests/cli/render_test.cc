@@ -1,0 +1,129 @@
+// End-to-end tests of `sparseloop render` and `sparseloop report`.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "cli/cli_runner.h"
+#include "sparseloop/io/dataset.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "sparseloop/synthetic/report.h"
+#include "test_util.h"
+
+namespace sparseloop::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(RenderCli, AerialSequenceIsAKittiFolder) {
+  const auto out = TempDir() / "aerial";
+  const CliResult r = RunCli({"render", "--world", "aerial", "--plan", "figure8", "--frames", "6",
+                              "--seed", "3", "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("wrote 6 frames (640x480)"), std::string::npos) << r.out;
+  const Dataset d = OpenDataset("kitti:" + out.string());
+  EXPECT_EQ(d.frames.size(), 6u);
+  EXPECT_TRUE(d.has_gt());
+  EXPECT_EQ(ReadTrajectory(out / "poses_raw.txt").size(), 6u);
+  EXPECT_TRUE(fs::exists(out / "mapped" / "000005.txt"));
+}
+
+TEST(RenderCli, SameSeedSameBytes) {
+  const auto a = TempDir() / "a";
+  const auto b = TempDir().parent_path() / (TempDir().filename().string() + "_b");
+  for (const auto& out : {a, b}) {
+    const CliResult r = RunCli({"render", "--world", "aerial", "--frames", "3", "--seed", "9",
+                                "--threads", out == a ? "1" : "2", "--out", out.string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  for (const char* f : {"image_0/000002.png", "poses_raw.txt", "mapped/000001.txt"}) {
+    std::ifstream fa(a / f, std::ios::binary), fb(b / f, std::ios::binary);
+    const std::string sa((std::istreambuf_iterator<char>(fa)), {});
+    const std::string sb((std::istreambuf_iterator<char>(fb)), {});
+    EXPECT_FALSE(sa.empty());
+    EXPECT_EQ(sa, sb) << f;
+  }
+}
+
+TEST(RenderCli, BadArgumentsExit2) {
+  const auto out = TempDir() / "x";
+  EXPECT_EQ(RunCli({"render", "--world", "moon", "--out", out.string()}).exit_code, 2);
+  const CliResult street = RunCli({"render", "--world", "street", "--out", out.string()});
+  EXPECT_EQ(street.exit_code, 2);
+  EXPECT_NE(street.err.find("--trajectory"), std::string::npos) << street.err;
+  EXPECT_EQ(RunCli({"render", "--world", "aerial", "--plan", "spiral", "--out", out.string()})
+                .exit_code, 2);
+}
+
+TEST(RenderCli, StreetAlongKitti00) {
+  SL_REQUIRE_DATA("kitti_gt_poses/00.txt");
+  const auto out = TempDir() / "street";
+  const CliResult r =
+      RunCli({"render", "--world", "street", "--trajectory",
+              (DataDir() / "kitti_gt_poses" / "00.txt").string(), "--frames", "2", "--out",
+              out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Dataset d = OpenDataset("kitti:" + out.string());
+  ASSERT_EQ(d.frames.size(), 2u);
+  EXPECT_EQ(d.intrinsics.width, 1241);
+  EXPECT_DOUBLE_EQ(d.intrinsics.fx, 718.856);
+}
+
+// A fabricated run folder: GT circle, drifted raw, corrected = GT + small noise, loops (one false).
+void FabricateRun(const fs::path& dir) {
+  std::ofstream gt(dir / "poses_gt.txt"), raw(dir / "poses_raw.txt"), cor(dir / "trajectory.txt");
+  const int n = 400;
+  for (int i = 0; i < n; ++i) {
+    const double a = 4.0 * M_PI * i / n;  // two laps
+    const double x = 50 * std::cos(a), z = 50 * std::sin(a);
+    const double drift = 1.0 + 0.001 * i;
+    gt << fmt::format("1 0 0 {} 0 1 0 0 0 0 1 {}\n", x, z);
+    raw << fmt::format("1 0 0 {} 0 1 0 0 0 0 1 {}\n", drift * x + 0.05 * i, drift * z);
+    cor << fmt::format("{} 1 0 0 {} 0 1 0 0 0 0 1 {}\n", i, x + 0.3 * std::sin(i), z);
+  }
+  std::ofstream loops(dir / "loops.csv");
+  loops << "query,match,score,inliers\n";
+  for (int i = 210; i < 390; i += 20) loops << i << "," << i - 200 << ",0.8,50\n";
+  loops << "300,50,0.3,20\n";  // false: opposite side of the circle
+  std::ofstream summary(dir / "summary.json");
+  summary << R"({"frames": 400, "timing": {"features": {"mean_ms": 4.2}, "search": 0.3,
+               "matching": {"mean_ms": 2.5}, "posegraph": {"mean_ms": 12.0}}})";
+  std::ofstream gt_loops(dir / "gt_loops.txt");
+  for (int i = 200; i < 400; ++i) gt_loops << i << " " << i - 200 << "\n";
+}
+
+TEST(ReportCli, WritesHtmlAndPlots) {
+  if (synthetic::FindPython().empty()) {
+    if (InCi()) FAIL() << "python3 with matplotlib required in CI";
+    GTEST_SKIP() << "no python3 with matplotlib";
+  }
+  const auto dir = TempDir() / "run";
+  fs::create_directories(dir);
+  FabricateRun(dir);
+  const CliResult r = RunCli({"report", dir.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_TRUE(fs::exists(dir / "report.html"));
+  std::ifstream html(dir / "report.html");
+  const std::string page((std::istreambuf_iterator<char>(html)), {});
+  for (const char* png : {"report_topview.png", "report_error.png", "report_timing.png",
+                          "report_pr.png"}) {
+    EXPECT_NE(page.find(png), std::string::npos) << png;
+    EXPECT_GT(fs::file_size(dir / png), 5000u) << png;
+  }
+  EXPECT_NE(page.find("1 false"), std::string::npos) << "the fabricated false loop";
+}
+
+TEST(ReportCli, MissingFolderOrTrajectoryFails) {
+  EXPECT_EQ(RunCli({"report", "/nonexistent/run"}).exit_code, 2);
+  if (synthetic::FindPython().empty()) GTEST_SKIP() << "no python3 with matplotlib";
+  const auto empty = TempDir() / "empty";
+  fs::create_directories(empty);
+  const CliResult r = RunCli({"report", empty.string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no trajectory"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace sparseloop::test

@@ -1,0 +1,251 @@
+// The bad-input table (docs/ROBUSTNESS.md). Every row asserts a clear error (exception type and
+// message) or a status, and that what the detector already stored is intact afterwards: the
+// keyframe count and stored bytes are unchanged by a rejected keyframe, and a later valid keyframe
+// is still accepted.
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/io/dataset.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/pipeline/pipeline.h"
+#include "test_util.h"
+
+namespace sparseloop {
+namespace {
+
+constexpr int kWidth = 640;
+constexpr int kHeight = 480;
+
+cv::Mat TexturedImage(uint64_t seed) {
+  cv::Mat img(kHeight, kWidth, CV_8UC1, cv::Scalar(128));
+  cv::RNG rng(seed);
+  for (int i = 0; i < 300; ++i) {
+    const cv::Point a(rng.uniform(0, kWidth), rng.uniform(0, kHeight));
+    const cv::Point b = a + cv::Point(rng.uniform(-40, 40), rng.uniform(-40, 40));
+    const int shade = rng.uniform(0, 256);
+    if (i % 3 == 0) {
+      cv::circle(img, a, rng.uniform(3, 25), cv::Scalar(shade), cv::FILLED);
+    } else {
+      cv::rectangle(img, a, b, cv::Scalar(shade), cv::FILLED);
+    }
+  }
+  return img;
+}
+
+CameraIntrinsics Camera() {
+  CameraIntrinsics c;
+  c.fx = c.fy = 500;
+  c.cx = kWidth / 2.0;
+  c.cy = kHeight / 2.0;
+  c.width = kWidth;
+  c.height = kHeight;
+  return c;
+}
+
+KeyframeInput ValidInput(int64_t id) {
+  KeyframeInput in;
+  in.id = id;
+  in.timestamp = 0.1 * static_cast<double>(id);
+  in.image = TexturedImage(1000 + id);
+  in.intrinsics = Camera();
+  in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.5 * id, 0, 0));
+  return in;
+}
+
+class BadInput : public testing::Test {
+ protected:
+  void SetUp() override {
+    for (int64_t id = 0; id < 3; ++id) ASSERT_NO_THROW(detector_.Process(ValidInput(id)));
+    keyframes_ = detector_.num_keyframes();
+    bytes_ = detector_.StoredBytes();
+  }
+  // Asserts that a rejected keyframe changed nothing and the detector still accepts the next one.
+  void ExpectStateIntact() {
+    EXPECT_EQ(detector_.num_keyframes(), keyframes_);
+    EXPECT_EQ(detector_.StoredBytes(), bytes_);
+    EXPECT_NO_THROW(detector_.Process(ValidInput(100)));
+    EXPECT_EQ(detector_.num_keyframes(), keyframes_ + 1);
+  }
+  void ExpectRejected(const KeyframeInput& in, const std::string& message) {
+    try {
+      detector_.Process(in);
+      ADD_FAILURE() << "accepted a bad keyframe; expected: " << message;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+    ExpectStateIntact();
+  }
+
+  LoopDetector detector_{LoopDetector::Options{}};
+  size_t keyframes_ = 0;
+  size_t bytes_ = 0;
+};
+
+TEST_F(BadInput, ZeroSizeImage) {
+  KeyframeInput in = ValidInput(3);
+  in.image = cv::Mat();
+  ExpectRejected(in, "image must not be empty");
+}
+
+TEST_F(BadInput, WrongPixelType) {
+  KeyframeInput in = ValidInput(3);
+  cv::cvtColor(in.image, in.image, cv::COLOR_GRAY2BGR);
+  ExpectRejected(in, "8-bit grayscale");
+}
+
+TEST_F(BadInput, WrongSizeImage) {
+  KeyframeInput in = ValidInput(3);
+  cv::resize(in.image, in.image, cv::Size(320, 240));
+  ExpectRejected(in, "does not match the intrinsics");
+}
+
+TEST_F(BadInput, ImageWithoutTextureGivesNoFeaturesStatus) {
+  KeyframeInput in = ValidInput(3);
+  in.image = cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar(77));
+  const LoopResult r = detector_.Process(in);
+  EXPECT_EQ(r.status, LoopStatus::kNoFeatures);
+  EXPECT_EQ(detector_.num_keyframes(), keyframes_ + 1);  // stored (empty) so ids stay consistent
+  EXPECT_NO_THROW(detector_.Process(ValidInput(4)));
+}
+
+TEST_F(BadInput, NanPose) {
+  KeyframeInput in = ValidInput(3);
+  in.world_from_cam->translation.x() = std::numeric_limits<double>::quiet_NaN();
+  ExpectRejected(in, "pose is not finite");
+}
+
+TEST_F(BadInput, InfPose) {
+  KeyframeInput in = ValidInput(3);
+  in.world_from_cam->translation.z() = std::numeric_limits<double>::infinity();
+  ExpectRejected(in, "pose is not finite");
+}
+
+TEST_F(BadInput, NonUnitQuaternion) {
+  KeyframeInput in = ValidInput(3);
+  in.world_from_cam->rotation.coeffs() << 0.5, 0.5, 0.5, 0.9;  // |q| = 1.18
+  ExpectRejected(in, "non-unit quaternion");
+}
+
+TEST_F(BadInput, NonMonotonicTimestamp) {
+  KeyframeInput in = ValidInput(3);
+  in.timestamp = 0.05;  // earlier than keyframe 2 (0.2 s)
+  ExpectRejected(in, "timestamp");
+}
+
+TEST_F(BadInput, DuplicateTimestamp) {
+  KeyframeInput in = ValidInput(3);
+  in.timestamp = 0.2;  // same as keyframe 2
+  ExpectRejected(in, "timestamp");
+}
+
+TEST_F(BadInput, DuplicateKeyframeId) {
+  KeyframeInput in = ValidInput(2);
+  in.timestamp = 0.3;
+  ExpectRejected(in, "already processed");
+}
+
+TEST_F(BadInput, WrongIntrinsics) {
+  KeyframeInput in = ValidInput(3);
+  in.intrinsics.fx = -500;
+  ExpectRejected(in, "fx must be positive");
+  in = ValidInput(3);
+  in.intrinsics.cx = 5000;
+  ExpectRejected(in, "principal point");
+}
+
+TEST_F(BadInput, EmptyMaskGivesNoFeaturesStatus) {
+  KeyframeInput in = ValidInput(3);
+  in.high_gradient_mask = cv::Mat::zeros(kHeight, kWidth, CV_8UC1);
+  const LoopResult r = detector_.Process(in);
+  EXPECT_EQ(r.status, LoopStatus::kNoFeatures);
+  EXPECT_NO_THROW(detector_.Process(ValidInput(4)));
+}
+
+TEST_F(BadInput, FullMaskBehavesLikeNoMask) {
+  KeyframeInput with_mask = ValidInput(3);
+  with_mask.high_gradient_mask = cv::Mat(kHeight, kWidth, CV_8UC1, cv::Scalar(255));
+  detector_.Process(with_mask);
+  LoopDetector::Options whole_image;
+  whole_image.features.use_gradient_mask = false;
+  LoopDetector reference(whole_image);
+  reference.Process(ValidInput(3));
+  // A mask covering everything extracts exactly what the whole image gives.
+  EXPECT_EQ(detector_.record(3).size(), reference.record(3).size());
+  EXPECT_EQ(detector_.record(3).descriptors, reference.record(3).descriptors);
+}
+
+TEST_F(BadInput, MaskOfWrongSize) {
+  KeyframeInput in = ValidInput(3);
+  in.high_gradient_mask = cv::Mat(10, 10, CV_8UC1, cv::Scalar(255));
+  ExpectRejected(in, "mask");
+}
+
+TEST_F(BadInput, DepthsWithoutPixels) {
+  KeyframeInput in = ValidInput(3);
+  in.mapped_depths = {1.0f, 2.0f};
+  ExpectRejected(in, "mapped_depths");
+}
+
+// Dataset-level rows: a missing or corrupt image in a sequence, and a pose file shorter than the
+// image list.
+class BadSequence : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = test::TempDir() / "seq";
+    std::filesystem::create_directories(dir_ / "image_0");
+    std::ofstream times(dir_ / "times.txt");
+    std::ofstream poses(dir_ / "raw.txt");
+    for (int i = 0; i < 6; ++i) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "%06d.png", i);
+      cv::imwrite((dir_ / "image_0" / name).string(), TexturedImage(50 + i));
+      times << 0.1 * i << "\n";
+      poses << "1 0 0 " << 0.5 * i << " 0 1 0 0 0 0 1 0\n";
+    }
+    std::ofstream(dir_ / "calib.txt") << "P0: 500 0 320 0 0 500 240 0 0 0 1 0\n";
+  }
+  std::filesystem::path dir_;
+};
+
+TEST_F(BadSequence, CorruptAndMissingImagesAreSkippedAndCounted) {
+  std::ofstream(dir_ / "image_0" / "000002.png") << "not a png at all";
+  std::filesystem::remove(dir_ / "image_0" / "000004.png");
+  std::ofstream(dir_ / "image_0" / "000004.png");  // zero bytes
+  const Dataset d = OpenDataset("kitti:" + dir_.string());
+  const Trajectory raw =
+      MatchRawPosesToFrames(d, ReadTrajectory(dir_ / "raw.txt"), 0.02, dir_ / "raw.txt");
+  PipelineOptions options;
+  const PipelineResult r = RunPipeline(d, raw, options);
+  EXPECT_EQ(r.skipped_frames, 2u);
+  EXPECT_EQ(r.frame_results.size(), 4u);
+  EXPECT_EQ(r.corrected.size(), 6u);  // every raw pose still gets an output pose
+  options.skip_unreadable_frames = false;
+  try {
+    RunPipeline(d, raw, options);
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("000002.png"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(BadSequence, PoseFileShorterThanImageList) {
+  std::ofstream(dir_ / "short.txt") << "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0.5 0 1 0 0 0 0 1 0\n";
+  const Dataset d = OpenDataset("kitti:" + dir_.string());
+  try {
+    MatchRawPosesToFrames(d, ReadTrajectory(dir_ / "short.txt"), 0.02, dir_ / "short.txt");
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("short.txt"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("6 images"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sparseloop
