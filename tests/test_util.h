@@ -22,13 +22,14 @@ inline bool InCi() {
 
 inline std::filesystem::path SourceDir() { return SPARSELOOP_SOURCE_DIR; }
 
-// A fresh, empty directory for this test.
-inline std::filesystem::path TempDir() {
+// A fresh, empty directory for this test (`suffix` gives a second, independent one).
+// Every call empties it: call once per test and keep the path.
+inline std::filesystem::path TempDir(const std::string& suffix = "") {
   const auto* info = testing::UnitTest::GetInstance()->current_test_info();
   std::filesystem::path root = std::getenv("SPARSELOOP_TEST_TMP")
                                    ? std::getenv("SPARSELOOP_TEST_TMP")
                                    : std::filesystem::temp_directory_path() / "sparseloop_tests";
-  auto dir = root / (std::string(info->test_suite_name()) + "." + info->name());
+  auto dir = root / (std::string(info->test_suite_name()) + "." + info->name() + suffix);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

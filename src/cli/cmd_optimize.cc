@@ -4,8 +4,8 @@
 #include <map>
 #include <string>
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
@@ -15,8 +15,9 @@
 namespace sparseloop::cli {
 
 int RunOptimize(int argc, char** argv) {
-  CLI::App app{"Optimise a pose graph (g2o: VERTEX_SE3:QUAT / EDGE_SE3:QUAT / VERTEX_SE2 / "
-               "EDGE_SE2; TORO EDGE3)"};
+  CLI::App app{
+      "Optimise a pose graph (g2o: VERTEX_SE3:QUAT / EDGE_SE3:QUAT / VERTEX_SE2 / "
+      "EDGE_SE2; TORO EDGE3)"};
   std::string in;
   std::string out;
   std::string robust = "none";
@@ -32,8 +33,9 @@ int RunOptimize(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Ceres threads")->check(CLI::PositiveNumber);
   app.parse(argc, argv);
 
-  const std::map<std::string, RobustLoss> losses = {
-      {"none", RobustLoss::kTrivial}, {"huber", RobustLoss::kHuber}, {"cauchy", RobustLoss::kCauchy}};
+  const std::map<std::string, RobustLoss> losses = {{"none", RobustLoss::kTrivial},
+                                                    {"huber", RobustLoss::kHuber},
+                                                    {"cauchy", RobustLoss::kCauchy}};
   const auto it = losses.find(robust);
   SL_CHECK_MSG(it != losses.end(), "--robust must be none, huber or cauchy, got '{}'", robust);
   options.edge_loss = it->second;
@@ -57,11 +59,10 @@ int RunOptimize(int argc, char** argv) {
       "Time (s)              {:.3f}\n"
       "Termination:          {} ({})\n"
       "wrote {}\n",
-      in, summary.num_vertices,
-      graph.vertex_type() == VertexType::kSe2 ? "SE2" : "SE3", summary.num_edges, robust,
-      summary.initial_cost, summary.final_cost, summary.initial_cost - summary.final_cost,
-      summary.iterations, summary.solve_seconds, ToString(summary.status), summary.ceres_message,
-      out);
+      in, summary.num_vertices, graph.vertex_type() == VertexType::kSe2 ? "SE2" : "SE3",
+      summary.num_edges, robust, summary.initial_cost, summary.final_cost,
+      summary.initial_cost - summary.final_cost, summary.iterations, summary.solve_seconds,
+      ToString(summary.status), summary.ceres_message, out);
   return summary.status == PoseGraphStatus::kFailed ? 1 : 0;
 }
 

@@ -25,8 +25,8 @@ std::string Quote(const std::string& s) {
 }  // namespace
 
 CliResult RunCli(const std::vector<std::string>& args) {
-  const auto dir = TempDir() / "cli";
-  std::filesystem::create_directories(dir);
+  // A folder of its own: the test's TempDir() may hold the command's input files.
+  const auto dir = TempDir(".cli_output");
   std::string cmd = Quote(SPARSELOOP_CLI);
   for (const auto& a : args) cmd += " " + Quote(a);
   cmd += " >" + Quote((dir / "stdout").string()) + " 2>" + Quote((dir / "stderr").string());

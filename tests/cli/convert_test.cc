@@ -15,8 +15,16 @@ void Write(const std::filesystem::path& path, const std::string& content) {
   std::ofstream(path) << content;
 }
 
+// RunCli() recreates TempDir() on every call, so input/output files live in a sibling folder.
+std::filesystem::path FilesDir() {
+  const auto dir = std::filesystem::path(TempDir().string() + ".files");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
 TEST(CliConvert, TumToKittiAndBack) {
-  const auto dir = TempDir();
+  const auto dir = FilesDir();
   Write(dir / "in.txt",
         "# t x y z qx qy qz qw\n0.5 1 2 3 0 0 0 1\n0.6 4 5 6 0 0 0.7071067811865476 "
         "0.7071067811865476\n");
@@ -40,7 +48,7 @@ TEST(CliConvert, TumToKittiAndBack) {
 }
 
 TEST(CliConvert, MalformedInputExits2WithFileAndLine) {
-  const auto dir = TempDir();
+  const auto dir = FilesDir();
   Write(dir / "bad.txt", "0.5 1 2 3 0 0 0 1\n0.6 1 2 3 0 0 0 1.5\n");
   const CliResult r = RunCli({"convert", "--in", (dir / "bad.txt").string(), "--out",
                               (dir / "out.txt").string(), "--to", "kitti"});
@@ -51,7 +59,7 @@ TEST(CliConvert, MalformedInputExits2WithFileAndLine) {
 }
 
 TEST(CliConvert, BadFormatNameAndPositionsToTumExit2) {
-  const auto dir = TempDir();
+  const auto dir = FilesDir();
   Write(dir / "pos.txt", "0 1 2 3\n1 2 3 4\n");
   CliResult r = RunCli({"convert", "--in", (dir / "pos.txt").string(), "--out",
                         (dir / "o.txt").string(), "--to", "g2o"});
@@ -69,7 +77,7 @@ TEST(CliConvert, BadFormatNameAndPositionsToTumExit2) {
 }
 
 TEST(CliConvert, MissingInputExits2) {
-  const auto dir = TempDir();
+  const auto dir = FilesDir();
   const CliResult r = RunCli({"convert", "--in", (dir / "none.txt").string(), "--out",
                               (dir / "o.txt").string(), "--to", "tum"});
   EXPECT_EQ(r.exit_code, 2);

@@ -24,8 +24,8 @@ constexpr const char* kSquare =
 TEST(CliOptimize, SquareConvergesToKnownAnswer) {
   const auto dir = TempDir();
   std::ofstream(dir / "square.g2o") << kSquare;
-  const CliResult r = RunCli({"optimize", "--g2o", (dir / "square.g2o").string(), "--out",
-                              (dir / "out.g2o").string()});
+  const CliResult r = RunCli(
+      {"optimize", "--g2o", (dir / "square.g2o").string(), "--out", (dir / "out.g2o").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("Termination:          converged"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("initial"), std::string::npos);
@@ -44,8 +44,8 @@ TEST(CliOptimize, SquareConvergesToKnownAnswer) {
 TEST(CliOptimize, BadInputExitsTwoWithLine) {
   const auto dir = TempDir();
   std::ofstream(dir / "bad.g2o") << "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0\n";
-  const CliResult r = RunCli({"optimize", "--g2o", (dir / "bad.g2o").string(), "--out",
-                              (dir / "out.g2o").string()});
+  const CliResult r = RunCli(
+      {"optimize", "--g2o", (dir / "bad.g2o").string(), "--out", (dir / "out.g2o").string()});
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("bad.g2o:2"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out.g2o"));
@@ -58,8 +58,8 @@ TEST(CliOptimize, ParkingGarage) {
   SL_REQUIRE_DATA("pose_graphs/parking-garage.g2o");
   const auto dir = TempDir();
   const CliResult r =
-      RunCli({"optimize", "--g2o", (DataDir() / "pose_graphs/parking-garage.g2o").string(),
-              "--out", (dir / "out.g2o").string()});
+      RunCli({"optimize", "--g2o", (DataDir() / "pose_graphs/parking-garage.g2o").string(), "--out",
+              (dir / "out.g2o").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("converged"), std::string::npos) << r.out;
   EXPECT_EQ(ReadG2o(dir / "out.g2o").num_vertices(), 1661u);

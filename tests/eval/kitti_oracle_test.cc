@@ -187,3 +187,30 @@ TEST(KittiOracle, Sequence00SiftPositionsMatchesIndependentImplementation) {
 
 }  // namespace
 }  // namespace sparseloop
+
+namespace sparseloop {
+namespace {
+
+// Ground truth from the literature: ORB-SLAM2 (Mur-Artal & Tardos, T-RO 2017, Table II, stereo)
+// reports on KITTI 00: t_rel 0.70 %, r_rel 0.25 deg/100m, ATE 1.3 m. Its published trajectory,
+// evaluated here with SE(3) alignment, must reproduce those rounded numbers.
+TEST(KittiPublished, OrbSlam2StereoSequence00MatchesPaperTable) {
+  SL_REQUIRE_DATA("vslam_trajectories/kitti00/KITTI_00_ORB.txt");
+  SL_REQUIRE_DATA("kitti_gt_poses/00.txt");
+  const auto gt =
+      test::KittiTrajectory(test::ReadKittiMatrices(test::DataDir() / "kitti_gt_poses/00.txt"));
+  const auto est = test::KittiTrajectory(
+      test::ReadKittiMatrices(test::DataDir() / "vslam_trajectories/kitti00/KITTI_00_ORB.txt"));
+  EvaluationOptions options;
+  options.association.method = AssociationMethod::kIndex;
+  options.alignment = Alignment::kSE3;
+  const auto e = EvaluateTrajectory(gt, est, options);
+  ASSERT_EQ(e.status, EvaluationStatus::kOk);
+  ASSERT_TRUE(e.kitti && e.kitti->t_err_pct && e.kitti->r_err_deg_per_100m);
+  EXPECT_NEAR(*e.kitti->t_err_pct, 0.70, 0.005);
+  EXPECT_NEAR(*e.kitti->r_err_deg_per_100m, 0.25, 0.005);
+  EXPECT_NEAR(e.ate.rmse, 1.3, 0.05);
+}
+
+}  // namespace
+}  // namespace sparseloop

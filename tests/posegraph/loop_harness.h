@@ -17,10 +17,10 @@
 namespace sparseloop::test {
 
 struct LoopHarnessOptions {
-  double distance = 5.0;         // GT metres
-  int64_t min_gap = 100;         // keyframes
-  int64_t query_stride = 10;     // keep one loop per this many query keyframes
-  int scale_window = 5;          // keyframes each side for the local scale
+  double distance = 5.0;      // GT metres
+  int64_t min_gap = 100;      // keyframes
+  int64_t query_stride = 10;  // keep one loop per this many query keyframes
+  int scale_window = 5;       // keyframes each side for the local scale
   double rotation_noise_rad = 0.01;
   double translation_noise = 0.05;  // fraction of the local raw step length
   double scale_noise = 0.01;        // log-scale

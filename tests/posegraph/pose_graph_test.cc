@@ -261,9 +261,9 @@ TEST(Interpolation, KeyframesGetTheirCorrectionAndConstantDeltaIsExact) {
   corrected_kf[2].world_from_cam = random_sim3() * raw_kf[2].world_from_cam;
   const auto at_kf = CorrectFramePoses(raw_kf, corrected_kf, raw_kf);
   for (size_t k = 0; k < raw_kf.size(); ++k) {
-    EXPECT_LT((at_kf[k].world_from_cam.ToMatrix4() - corrected_kf[k].world_from_cam.ToMatrix4())
-                  .norm(),
-              1e-9);
+    EXPECT_LT(
+        (at_kf[k].world_from_cam.ToMatrix4() - corrected_kf[k].world_from_cam.ToMatrix4()).norm(),
+        1e-9);
   }
   const Sim3d d1 = corrected_kf[1].world_from_cam * raw_kf[1].world_from_cam.Inverse();
   const Sim3d d2 = corrected_kf[2].world_from_cam * raw_kf[2].world_from_cam.Inverse();
@@ -282,7 +282,8 @@ TEST(DirectionLoop, MagnitudeFromLocalStepAndNoScaleInformation) {
   const Eigen::Vector3d dir = Eigen::Vector3d(1, 2, 2) / 3.0;
   DirectionLoopOptions o;
   o.baseline_in_steps = 2.0;
-  const LoopConstraint l = MakeLoopConstraintFromDirection(10, 2, Sim3d(), Sim3d(), rot, dir, 0.5, o);
+  const LoopConstraint l =
+      MakeLoopConstraintFromDirection(10, 2, Sim3d(), Sim3d(), rot, dir, 0.5, o);
   EXPECT_FALSE(l.has_scale);
   EXPECT_EQ(l.query_id, 10);
   EXPECT_EQ(l.match_id, 2);

@@ -32,9 +32,9 @@ TEST(Sim3Jet, ExpLogMatchCoreAcrossRegimes) {
   auto rng = test::SeededRng(1);
   // (translation, rotation, log-scale) magnitudes: generic, tiny rotation, tiny scale, both tiny,
   // exactly zero rotation / scale.
-  const double regimes[][3] = {{1.0, 0.8, 0.3}, {1.0, 1e-6, 0.3},  {1.0, 0.8, 1e-6},
-                               {1.0, 1e-7, 1e-7}, {1.0, 0.0, 0.5}, {1.0, 0.5, 0.0},
-                               {1.0, 0.0, 0.0},  {1.0, 2e-5, 2e-3}, {1.0, 3e-3, 5e-5}};
+  const double regimes[][3] = {{1.0, 0.8, 0.3},   {1.0, 1e-6, 0.3},  {1.0, 0.8, 1e-6},
+                               {1.0, 1e-7, 1e-7}, {1.0, 0.0, 0.5},   {1.0, 0.5, 0.0},
+                               {1.0, 0.0, 0.0},   {1.0, 2e-5, 2e-3}, {1.0, 3e-3, 5e-5}};
   for (const auto& r : regimes) {
     for (int k = 0; k < 20; ++k) {
       const Vector7d tangent = RandomTangent(rng, r[0], r[1], r[2]);
@@ -44,9 +44,9 @@ TEST(Sim3Jet, ExpLogMatchCoreAcrossRegimes) {
       // core's Sim3LeftJacobianW switches to the sigma = 0 formulas for |sigma| < 1e-6 and so
       // is only accurate to O(|sigma| |upsilon|) there (the template keeps the first-order
       // terms): allow that much when comparing with core.
-      const double core_tol =
-          1e-9 + (std::abs(tangent[6]) < 1e-6 ? 2.0 * std::abs(tangent[6]) * tangent.head<3>().norm()
-                                               : 0.0);
+      const double core_tol = 1e-9 + (std::abs(tangent[6]) < 1e-6
+                                          ? 2.0 * std::abs(tangent[6]) * tangent.head<3>().norm()
+                                          : 0.0);
       EXPECT_NEAR(got.scale, expected.scale, 1e-12);
       EXPECT_LT((got.translation - expected.translation).norm(), core_tol)
           << "regime " << r[1] << " " << r[2];

@@ -31,8 +31,8 @@ Data MakeData() {
   for (int i = 1; i < n; ++i) {
     const Sim3d rel = d.gt[i - 1].Inverse() * d.gt[i];
     log_scale += 0.002 + 0.002 * n01(rng);
-    const Eigen::Quaterniond drift(Eigen::AngleAxisd(0.003 + 0.002 * n01(rng),
-                                                     Eigen::Vector3d::UnitZ()));
+    const Eigen::Quaterniond drift(
+        Eigen::AngleAxisd(0.003 + 0.002 * n01(rng), Eigen::Vector3d::UnitZ()));
     d.raw.push_back(d.raw.back() *
                     Sim3d(1.0, rel.rotation * drift, std::exp(log_scale) * rel.translation));
   }
@@ -79,8 +79,7 @@ TEST(BackgroundOptimizer, AllLoopsProcessedAndFinalEqualsSynchronousSolve) {
     size_t next_loop = 0;
     for (size_t i = 0; i < d.raw.size(); ++i) {
       ASSERT_TRUE(optimizer.PushKeyframe(static_cast<int64_t>(i), d.raw[i]));
-      while (next_loop < d.loops.size() &&
-             d.loops[next_loop].query_id == static_cast<int64_t>(i)) {
+      while (next_loop < d.loops.size() && d.loops[next_loop].query_id == static_cast<int64_t>(i)) {
         ASSERT_TRUE(optimizer.PushLoop(d.loops[next_loop++]));
       }
     }
@@ -118,9 +117,9 @@ TEST(BackgroundOptimizer, AllLoopsProcessedAndFinalEqualsSynchronousSolve) {
   // And the last delivered correction is that final estimate.
   const PoseCorrection& last = corrections.back();
   for (size_t k = 0; k < last.ids.size(); ++k) {
-    ASSERT_LT((last.world_from_keyframe[k].ToMatrix4() - graph.Pose(last.ids[k]).ToMatrix4())
-                  .norm(),
-              1e-12);
+    ASSERT_LT(
+        (last.world_from_keyframe[k].ToMatrix4() - graph.Pose(last.ids[k]).ToMatrix4()).norm(),
+        1e-12);
   }
 }
 

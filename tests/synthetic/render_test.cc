@@ -109,7 +109,8 @@ TEST(Render, ReprojectionThroughDepthLandsOnTheSameTexturePoint) {
     for (int u = 10; u < cam.width - 10; u += 3) {
       const double depth = fa.depth.at(u, v);
       ASSERT_GT(depth, 0.0);
-      const Eigen::Vector3d p_in_world = a * (depth * cam.Unproject(Eigen::Vector2d(u, v)).homogeneous());
+      const Eigen::Vector3d p_in_world =
+          a * (depth * cam.Unproject(Eigen::Vector2d(u, v)).homogeneous());
       // The depth map is exact: tracing the same ray hits the same point.
       const Hit hit_a = world.Trace(a.translation, p_in_world - a.translation);
       ASSERT_LT((hit_a.p_in_world - p_in_world).norm(), 1e-6);

@@ -27,12 +27,12 @@ TEST(WriteKittiSequence, KittiLoaderReadsBackImagesPosesAndCalib) {
   o.write_depth = true;
   o.num_threads = 2;
   int calls = 0;
-  const auto r = WriteKittiSequence(dir, world, cam, gt, o, std::nullopt,
-                                    [&](int64_t done, int64_t total) {
-                                      ++calls;
-                                      EXPECT_EQ(total, 12);
-                                      EXPECT_LE(done, total);
-                                    });
+  const auto r =
+      WriteKittiSequence(dir, world, cam, gt, o, std::nullopt, [&](int64_t done, int64_t total) {
+        ++calls;
+        EXPECT_EQ(total, 12);
+        EXPECT_LE(done, total);
+      });
   EXPECT_EQ(r.frames, 12);
   EXPECT_EQ(calls, 12);
 
@@ -45,7 +45,8 @@ TEST(WriteKittiSequence, KittiLoaderReadsBackImagesPosesAndCalib) {
   for (size_t i = 0; i < 12; ++i) {
     ASSERT_TRUE(d.frames[i].gt_world_from_cam.has_value());
     EXPECT_LT((d.frames[i].gt_world_from_cam->translation - gt.poses[i].world_from_cam.translation)
-                  .norm(), 1e-6);
+                  .norm(),
+              1e-6);
     EXPECT_NEAR(d.frames[i].timestamp, gt.poses[i].timestamp, 1e-6);
   }
   // The PNG holds exactly what the renderer produces for that frame.

@@ -57,8 +57,9 @@ TEST(ProceduralTextures, DeterministicDistinctAndCornerRich) {
   }
   o.seed += 1;
   const auto c = MakeProceduralTextures(o);
-  EXPECT_NE(c->textures[0].SampleLevel(10.5, 10.5, 0) * 1000 + c->textures[0].SampleLevel(70.5, 3.5, 0),
-            a->textures[0].SampleLevel(10.5, 10.5, 0) * 1000 + a->textures[0].SampleLevel(70.5, 3.5, 0));
+  EXPECT_NE(
+      c->textures[0].SampleLevel(10.5, 10.5, 0) * 1000 + c->textures[0].SampleLevel(70.5, 3.5, 0),
+      a->textures[0].SampleLevel(10.5, 10.5, 0) * 1000 + a->textures[0].SampleLevel(70.5, 3.5, 0));
   // Structure: a good share of pixels carry a strong gradient in both directions (corners/edges).
   int strong = 0;
   const auto& t = a->textures[0];

@@ -38,10 +38,12 @@ TEST(SimulateDrift, NoDriftReproducesGroundTruth) {
   const auto r = SimulateDrift(gt, NoDrift());
   ASSERT_EQ(r.raw.size(), gt.size());
   for (size_t i = 0; i < gt.size(); ++i) {
-    EXPECT_LT((r.raw.poses[i].world_from_cam.translation - gt.poses[i].world_from_cam.translation)
-                  .norm(), 1e-9);
-    EXPECT_LT(RotationAngle(r.raw.poses[i].world_from_cam.rotation,
-                            gt.poses[i].world_from_cam.rotation), 1e-9);
+    EXPECT_LT(
+        (r.raw.poses[i].world_from_cam.translation - gt.poses[i].world_from_cam.translation).norm(),
+        1e-9);
+    EXPECT_LT(
+        RotationAngle(r.raw.poses[i].world_from_cam.rotation, gt.poses[i].world_from_cam.rotation),
+        1e-9);
     EXPECT_EQ(r.raw.poses[i].timestamp, gt.poses[i].timestamp);
     EXPECT_DOUBLE_EQ(r.scale[i], 1.0);
   }
@@ -79,7 +81,8 @@ TEST(SimulateDrift, ChainStepsCarryTheScale) {
   EXPECT_GT(r.scale.back() / r.scale.front(), 1.4);
   // LocalScale recovers the simulated scale from the trajectories alone.
   const auto est = LocalScale(gt, r.raw, 3);
-  for (size_t i = 10; i + 10 < gt.size(); i += 37) EXPECT_NEAR(est[i], r.scale[i], 0.05 * r.scale[i]);
+  for (size_t i = 10; i + 10 < gt.size(); i += 37)
+    EXPECT_NEAR(est[i], r.scale[i], 0.05 * r.scale[i]);
 }
 
 TEST(SimulateDrift, SeededAndNoisy) {
@@ -89,9 +92,12 @@ TEST(SimulateDrift, SeededAndNoisy) {
   const auto b = SimulateDrift(gt, o);
   o.seed += 1;
   const auto c = SimulateDrift(gt, o);
-  EXPECT_EQ(a.raw.poses.back().world_from_cam.ToVector(), b.raw.poses.back().world_from_cam.ToVector());
+  EXPECT_EQ(a.raw.poses.back().world_from_cam.ToVector(),
+            b.raw.poses.back().world_from_cam.ToVector());
   EXPECT_GT((a.raw.poses.back().world_from_cam.translation -
-             c.raw.poses.back().world_from_cam.translation).norm(), 1e-3);
+             c.raw.poses.back().world_from_cam.translation)
+                .norm(),
+            1e-3);
   o.initial_scale = 0.0;
   EXPECT_THROW(SimulateDrift(gt, o), std::invalid_argument);
 }

@@ -76,11 +76,11 @@ enum class OutlierRejection {
 // is kept. Odometry over the raw (initial) vertex poses; its covariance is accumulated with the
 // per-step model below, including the lever arm of rotation and scale drift over the chain.
 struct PcmOptions {
-  double confidence = 0.99;              // chi2 quantile used as the threshold (unitless)
+  double confidence = 0.99;                 // chi2 quantile used as the threshold (unitless)
   double step_translation_fraction = 0.05;  // sigma_t per step / step length (unitless)
   double step_rotation_sigma_rad = 0.01;    // rad per step (also the lever-arm drift rate)
   double step_scale_sigma = 0.01;           // log-scale per step (also lever arm); Sim(3) only
-  size_t max_exact_clique = 64;  // loops; above this a greedy clique is used
+  size_t max_exact_clique = 64;             // loops; above this a greedy clique is used
   void Check() const;
 };
 
@@ -96,7 +96,7 @@ struct PoseGraphOptions {
   double loss_scale = 1.0;  // whitened residual units (sigmas) where the robust loss bends
   OutlierRejection rejection = OutlierRejection::kPcm;
   PcmOptions pcm;
-  double switch_prior_sigma = 1.0;  // unitless: std-dev of the switch prior (1 - s)
+  double switch_prior_sigma = 1.0;   // unitless: std-dev of the switch prior (1 - s)
   double switch_reject_below = 0.5;  // switch value below which a loop is reported rejected
   int num_threads = 1;               // Ceres threads
   bool log_progress = false;         // per-iteration log through Logger() (never stdout)
@@ -122,7 +122,7 @@ struct PoseGraphSummary {
   size_t num_vertices = 0;
   size_t num_edges = 0;
   size_t num_loops = 0;
-  std::vector<size_t> rejected_loops;      // indices into PoseGraph::loops()
+  std::vector<size_t> rejected_loops;       // indices into PoseGraph::loops()
   std::vector<LoopPair> rejected_loop_ids;  // {query_id, match_id} of each rejected loop
   std::string ceres_message;
   std::string BriefReport() const;
@@ -195,11 +195,11 @@ PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
 // perpendicular directions `direction_sigma_rad` times the magnitude, and the scale no
 // information (has_scale = false).
 struct DirectionLoopOptions {
-  double baseline_in_steps = 1.0;          // unitless: assumed |t| / local step length
-  double magnitude_sigma_fraction = 1.0;   // unitless: sigma along the direction / magnitude
-  double direction_sigma_rad = 0.05;       // rad: angular uncertainty of the direction
-  double rotation_sigma_rad = 0.01;        // rad
-  double weight = 1.0;                     // unitless information multiplier
+  double baseline_in_steps = 1.0;         // unitless: assumed |t| / local step length
+  double magnitude_sigma_fraction = 1.0;  // unitless: sigma along the direction / magnitude
+  double direction_sigma_rad = 0.05;      // rad: angular uncertainty of the direction
+  double rotation_sigma_rad = 0.01;       // rad
+  double weight = 1.0;                    // unitless information multiplier
   void Check() const;
 };
 // The magnitude is converted from world units into the query's frame with the raw query scale

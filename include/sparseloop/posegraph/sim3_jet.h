@@ -101,8 +101,7 @@ Matrix3<T> Sim3W(const Vector3<T>& omega, const T& sigma) {
       // Double Taylor series around (theta, sigma) = (0, 0).
       const T s2 = sigma * sigma;
       a = T(0.5) + sigma / T(3.0) + s2 / T(8.0) + s2 * sigma / T(30.0) - theta_sq / T(24.0);
-      b = T(1.0 / 6.0) + sigma / T(8.0) + s2 / T(20.0) + s2 * sigma / T(72.0) -
-          theta_sq / T(120.0);
+      b = T(1.0 / 6.0) + sigma / T(8.0) + s2 / T(20.0) + s2 * sigma / T(72.0) - theta_sq / T(120.0);
     } else {
       const T s2 = sigma * sigma;
       a = ((sigma - T(1.0)) * scale + T(1.0)) / s2;

@@ -31,9 +31,9 @@ struct BackgroundOptimizerOptions {
 
 // One delivered correction.
 struct PoseCorrection {
-  uint64_t revision = 0;          // 1, 2, ... in delivery order
-  size_t num_loops = 0;           // loops in the graph when this solve started
-  std::vector<int64_t> ids;       // keyframe ids in insertion order
+  uint64_t revision = 0;                   // 1, 2, ... in delivery order
+  size_t num_loops = 0;                    // loops in the graph when this solve started
+  std::vector<int64_t> ids;                // keyframe ids in insertion order
   std::vector<Sim3d> world_from_keyframe;  // corrected poses, same order
   PoseGraphSummary summary;
 };

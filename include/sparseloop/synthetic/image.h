@@ -7,8 +7,8 @@ namespace sparseloop::synthetic {
 
 // Row-major 8-bit grayscale image.
 struct Image8 {
-  int width = 0;   // pixels
-  int height = 0;  // pixels
+  int width = 0;                // pixels
+  int height = 0;               // pixels
   std::vector<uint8_t> pixels;  // width * height, row-major
 
   uint8_t at(int u, int v) const { return pixels[static_cast<size_t>(v) * width + u]; }
@@ -17,8 +17,8 @@ struct Image8 {
 // Row-major depth map: z of the hit point in the camera frame (metres); 0 where nothing was hit
 // (sky).
 struct DepthMap {
-  int width = 0;   // pixels
-  int height = 0;  // pixels
+  int width = 0;             // pixels
+  int height = 0;            // pixels
   std::vector<float> depth;  // width * height, row-major
 
   float at(int u, int v) const { return depth[static_cast<size_t>(v) * width + u]; }

@@ -29,12 +29,12 @@ struct Photometric {
 };
 
 struct RenderOptions {
-  double near = 0.05;          // metres; hits closer than this along z are ignored
+  double near = 0.05;           // metres; hits closer than this along z are ignored
   double max_distance = 400.0;  // metres; finite quads farther than this are culled
-  double noise_sigma = 1.5;    // gray levels, std-dev of the additive Gaussian sensor noise
-  double blur_sigma = 0.0;     // pixels, std-dev of a Gaussian blur (0: none)
-  int num_threads = 1;         // threads over rows (the output does not depend on it)
-  uint64_t seed = 1;           // noise seed
+  double noise_sigma = 1.5;     // gray levels, std-dev of the additive Gaussian sensor noise
+  double blur_sigma = 0.0;      // pixels, std-dev of a Gaussian blur (0: none)
+  int num_threads = 1;          // threads over rows (the output does not depend on it)
+  uint64_t seed = 1;            // noise seed
   void Check() const;
 };
 

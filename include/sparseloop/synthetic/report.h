@@ -8,8 +8,8 @@
 namespace sparseloop::synthetic {
 
 struct ReportOptions {
-  std::filesystem::path script;  // report.py; empty: FindReportScript()
-  std::string python;            // interpreter; empty: FindPython()
+  std::filesystem::path script;       // report.py; empty: FindReportScript()
+  std::string python;                 // interpreter; empty: FindPython()
   double false_loop_distance = 10.0;  // metres (GT units): a loop is false beyond this GT distance
   void Check() const;
 };

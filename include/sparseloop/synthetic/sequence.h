@@ -24,15 +24,15 @@
 namespace sparseloop::synthetic {
 
 struct SequenceOptions {
-  RenderOptions render;                  // per-frame rendering (its num_threads is ignored)
-  bool photometric_drift = true;         // exposure/gamma change along the sequence
-  PhotometricDriftOptions photometric;   // used when photometric_drift
-  DriftOptions drift;                    // raw trajectory simulation (when no raw is given)
-  bool write_mapped = true;              // write mapped/NNNNNN.txt
+  RenderOptions render;                 // per-frame rendering (its num_threads is ignored)
+  bool photometric_drift = true;        // exposure/gamma change along the sequence
+  PhotometricDriftOptions photometric;  // used when photometric_drift
+  DriftOptions drift;                   // raw trajectory simulation (when no raw is given)
+  bool write_mapped = true;             // write mapped/NNNNNN.txt
   MappedPixelOptions mapped;
-  bool write_depth = false;              // write depth_0/NNNNNN.png
-  int num_threads = 2;                   // frames rendered in parallel (output independent of it)
-  int png_compression = 1;               // 0..9, zlib level of the PNGs (1: fast)
+  bool write_depth = false;  // write depth_0/NNNNNN.png
+  int num_threads = 2;       // frames rendered in parallel (output independent of it)
+  int png_compression = 1;   // 0..9, zlib level of the PNGs (1: fast)
   void Check() const;
 };
 

@@ -59,19 +59,19 @@ std::shared_ptr<const TextureSet> LoadTextureFolder(const std::filesystem::path&
                                                     const TextureFolderOptions& options = {});
 
 struct ProceduralTextureOptions {
-  int count = 12;        // number of textures
-  int size = 512;        // pixels, square
-  int octaves = 5;       // value-noise octaves (coarsest cell = size / 4)
-  int rectangles = 60;   // random filled rectangles per texture (corners for ORB)
-  int discs = 25;        // random filled discs per texture
-  int lines = 20;        // random line segments per texture
-  uint64_t seed = 7;     // everything is a function of this seed
+  int count = 12;       // number of textures
+  int size = 512;       // pixels, square
+  int octaves = 5;      // value-noise octaves (coarsest cell = size / 4)
+  int rectangles = 60;  // random filled rectangles per texture (corners for ORB)
+  int discs = 25;       // random filled discs per texture
+  int lines = 20;       // random line segments per texture
+  uint64_t seed = 7;    // everything is a function of this seed
   void Check() const;
 };
 
 // Multi-octave value noise + random rectangles, discs and lines: corner-rich, non-periodic
 // within a texture, different for every texture index.
-std::shared_ptr<const TextureSet> MakeProceduralTextures(const ProceduralTextureOptions& options =
-                                                             {});
+std::shared_ptr<const TextureSet> MakeProceduralTextures(
+    const ProceduralTextureOptions& options = {});
 
 }  // namespace sparseloop::synthetic

@@ -21,10 +21,10 @@ namespace sparseloop::synthetic {
 struct DriftOptions {
   double rotation_noise_deg_per_sqrt_m = 0.02;  // deg / sqrt(m), random-walk std-dev per axis
   Eigen::Vector3d rotation_bias_deg_per_100m{0.0, 0.6, 0.0};  // deg per 100 m, camera frame
-  double translation_noise = 0.01;             // std-dev per axis, fraction of the step length
-  double scale_noise_per_sqrt_m = 0.002;       // std-dev of d log(s) per sqrt(metre)
-  double scale_bias_per_100m = 0.01;           // d log(s) per 100 m (monocular scale drift)
-  double initial_scale = 1.0;                  // raw units per metre at frame 0
+  double translation_noise = 0.01;        // std-dev per axis, fraction of the step length
+  double scale_noise_per_sqrt_m = 0.002;  // std-dev of d log(s) per sqrt(metre)
+  double scale_bias_per_100m = 0.01;      // d log(s) per 100 m (monocular scale drift)
+  double initial_scale = 1.0;             // raw units per metre at frame 0
   uint64_t seed = 17;
   void Check() const;
 };
@@ -48,9 +48,9 @@ struct MappedPixel {
 };
 
 struct MappedPixelOptions {
-  int cell_size = 16;           // pixels; at most one mapped pixel per cell x cell block
-  double min_gradient = 24.0;   // gray levels, central-difference gradient magnitude threshold
-  int border = 8;               // pixels ignored at the image border
+  int cell_size = 16;          // pixels; at most one mapped pixel per cell x cell block
+  double min_gradient = 24.0;  // gray levels, central-difference gradient magnitude threshold
+  int border = 8;              // pixels ignored at the image border
   void Check() const;
 };
 

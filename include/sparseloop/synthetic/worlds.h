@@ -20,8 +20,8 @@ struct AerialWorldOptions {
   double texels_per_metre = 20.0;  // texture resolution on the ground (before per-tile scale)
   double min_scale = 0.7;          // per-tile scale range of the texture mapping
   double max_scale = 1.4;
-  double blend_fraction = 0.15;    // fraction of a tile cross-faded with its neighbour
-  uint64_t seed = 11;              // tile hash seed
+  double blend_fraction = 0.15;  // fraction of a tile cross-faded with its neighbour
+  uint64_t seed = 11;            // tile hash seed
   void Check() const;
 };
 World MakeAerialWorld(std::shared_ptr<const TextureSet> textures,
@@ -38,12 +38,12 @@ std::string ToString(FlightPlan plan);
 
 struct FlightPlanOptions {
   FlightPlan plan = FlightPlan::kCircuit;
-  double altitude = 40.0;      // metres above the ground
-  double size = 200.0;         // metres, side of the area the plan covers
-  double tilt_deg = 0.0;       // degrees from nadir, towards the direction of flight
-  int laps = 2;                // circuit / figure8: number of laps
-  int lawnmower_strips = 5;    // lawnmower: number of strips
-  int frames = 2000;           // frames sampled uniformly along the path
+  double altitude = 40.0;       // metres above the ground
+  double size = 200.0;          // metres, side of the area the plan covers
+  double tilt_deg = 0.0;        // degrees from nadir, towards the direction of flight
+  int laps = 2;                 // circuit / figure8: number of laps
+  int lawnmower_strips = 5;     // lawnmower: number of strips
+  int frames = 2000;            // frames sampled uniformly along the path
   double frame_rate_hz = 10.0;  // timestamps = index / frame_rate_hz
   void Check() const;
 };
@@ -77,8 +77,8 @@ struct StreetWorldOptions {
   double merge_distance = 4.0;      // metres, revisit merge radius
   double road_clearance = 5.0;      // metres, facades closer than this to any pose are removed
   double facade_cell = 10.0;        // metres, world grid cell hashed for the facade texture
-  double facade_texels_per_metre = 48.0;  // texture resolution on facades
-  double ground_texels_per_metre = 64.0;  // texture resolution on the ground
+  double facade_texels_per_metre = 48.0;            // texture resolution on facades
+  double ground_texels_per_metre = 64.0;            // texture resolution on the ground
   Eigen::Vector3d down = Eigen::Vector3d::UnitY();  // world "down" (KITTI: +y)
   uint64_t seed = 13;
   void Check() const;
