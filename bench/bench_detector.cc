@@ -66,6 +66,7 @@ void BM_ProcessKittiKeyframe(benchmark::State& state) {
     }
     KeyframeInput in;
     in.id = id;
+    in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
     in.image = images[id % images.size()];
     in.intrinsics = KittiCamera();
     const LoopResult r = detector->Process(in);

@@ -66,8 +66,9 @@ int RunRun(int argc, char** argv) {
   std::filesystem::create_directories(out);
   WriteTrajectory(out / "trajectory.txt", result.corrected, TrajectoryFormat::kTum);
   WriteTrajectory(out / "trajectory_kitti.txt", result.corrected, TrajectoryFormat::kKitti);
-  WriteTrajectory(out / "trajectory_raw.txt", result.raw, TrajectoryFormat::kTum);
-  if (gt) WriteTrajectory(out / "trajectory_gt.txt", *gt, TrajectoryFormat::kTum);
+  // Named as `sparseloop render` names them, so `sparseloop report` finds all three.
+  WriteTrajectory(out / "poses_raw.txt", result.raw, TrajectoryFormat::kTum);
+  if (gt) WriteTrajectory(out / "poses_gt.txt", *gt, TrajectoryFormat::kTum);
 
   std::optional<LoopTruth> truth;
   if (gt) truth = ClassifyLoopsAgainstGt(result.loops, *gt, raw, gt_loop_distance);
@@ -92,7 +93,25 @@ int RunRun(int argc, char** argv) {
   summary["rejected_loops"] = rejected;
   summary["accepted_loops"] =
       std::count(result.loop_accepted.begin(), result.loop_accepted.end(), true);
-  if (truth) AddLoopTruthJson(summary, *truth, result.loop_accepted);
+  if (truth) {
+    AddLoopTruthJson(summary, *truth, result.loop_accepted);
+    // Loop precision / recall against GT revisits derived from the GT poses (same distance),
+    // over every query frame that has a GT partner.
+    GtLoopOptions gl;
+    gl.distance = truth->threshold;
+    gl.min_gap = std::max(1, options.detector.search.exclude_recent);
+    const std::vector<LoopPair> gt_pairs = DeriveGtLoops(*gt, gl);
+    std::vector<Detection> detections;
+    for (const LoopResult& l : result.loops) detections.push_back({l.query_id, l.match_id, l.score});
+    const LoopPrResult pr = EvaluateLoops(detections, gt_pairs);
+    AddLoopKeys(summary, &pr);
+    WritePrCurveCsv(out / "pr_curve.csv", pr);
+    WriteFileAtomically(out / "gt_loops.txt", [&](std::ostream& os) {
+      os << "# query match: GT revisits (distance < " << gl.distance << ", gap >= " << gl.min_gap
+         << " frames)\n";
+      for (const LoopPair& p : gt_pairs) os << p.query << ' ' << p.match << '\n';
+    });
+  }
   summary["config"] = ConfigToJson(options);
 
   std::optional<TrajectoryEvaluation> eval_raw, eval_corrected;

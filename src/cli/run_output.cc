@@ -159,12 +159,20 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
 
 void WriteTimingsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
   WriteFileAtomically(path, [&](std::ostream& os) {
-    os << "id,status,candidates,extract_ms,search_ms,match_ms,verify_ms,total_ms\n";
+    os << "keyframe,status,extract_ms,search_ms,match_ms,verify_ms,total_ms\n";
     os << std::setprecision(6);
     for (const LoopResult& r : results) {
-      os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ','
-         << r.timings.extract_ms << ',' << r.timings.search_ms << ',' << r.timings.match_ms << ','
+      os << r.query_id << ',' << ToString(r.status) << ',' << r.timings.extract_ms << ',' << r.timings.search_ms << ',' << r.timings.match_ms << ','
          << r.timings.verify_ms << ',' << r.timings.total_ms << '\n';
+    }
+  });
+}
+
+void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr) {
+  WriteFileAtomically(path, [&](std::ostream& os) {
+    os << "threshold,precision,recall\n" << std::setprecision(8);
+    for (const LoopPrPoint& p : pr.curve) {
+      os << p.threshold << ',' << p.precision << ',' << p.recall << '\n';
     }
   });
 }

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "sparseloop/eval/loops.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/pipeline/config.h"
@@ -52,8 +53,9 @@ class ProgressLine {
 // (accepted / correct are empty when unknown).
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
                    const std::vector<bool>* accepted, const LoopTruth* truth);
-// timings.csv: one row per processed keyframe: id,status,candidates,extract_ms,search_ms,
-// match_ms,verify_ms,total_ms.
+// timings.csv: one row per processed keyframe: keyframe,status,extract_ms,search_ms,match_ms,
+// verify_ms,total_ms (only millisecond columns besides the first two; report.py plots each).
+void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr);
 void WriteTimingsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results);
 // keyframes, loops, bytes_per_keyframe, status_counts and timing_ms {stage: {median,p90,p99,max}}.
 nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size_t loops,

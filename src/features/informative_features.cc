@@ -69,17 +69,19 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
   SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");
   const int rows = gray.rows;
   const int cols = gray.cols;
-  // Gradient magnitude, L1 of the central differences: (|I(x+1)-I(x-1)| + |I(y+1)-I(y-1)|) / 2,
-  // saturated to [0, 255]; vectorised OpenCV array operations (about 1 ms at 1226x370).
+  // Gradient magnitude (central differences, L2), clamped to [0, 255].
   cv::Mat mag(rows, cols, CV_8UC1, cv::Scalar(0));
-  if (rows >= 3 && cols >= 3) {
-    cv::Mat gx, gy;
-    cv::absdiff(gray(cv::Rect(2, 1, cols - 2, rows - 2)), gray(cv::Rect(0, 1, cols - 2, rows - 2)),
-                gx);
-    cv::absdiff(gray(cv::Rect(1, 2, cols - 2, rows - 2)), gray(cv::Rect(1, 0, cols - 2, rows - 2)),
-                gy);
-    cv::Mat inner = mag(cv::Rect(1, 1, cols - 2, rows - 2));
-    cv::addWeighted(gx, 0.5, gy, 0.5, 0.0, inner);
+  for (int y = 1; y + 1 < rows; ++y) {
+    const uint8_t* up = gray.ptr<uint8_t>(y - 1);
+    const uint8_t* mid = gray.ptr<uint8_t>(y);
+    const uint8_t* down = gray.ptr<uint8_t>(y + 1);
+    uint8_t* out = mag.ptr<uint8_t>(y);
+    for (int x = 1; x + 1 < cols; ++x) {
+      const int gx = (int(mid[x + 1]) - int(mid[x - 1])) / 2;
+      const int gy = (int(down[x]) - int(up[x])) / 2;
+      const int m = static_cast<int>(std::sqrt(float(gx * gx + gy * gy)));
+      out[x] = static_cast<uint8_t>(std::min(m, 255));
+    }
   }
   // Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
   cv::Mat mask(rows, cols, CV_8UC1, cv::Scalar(0));

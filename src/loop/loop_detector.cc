@@ -81,7 +81,31 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   Timer total;
   LoopResult result;
   result.query_id = input.id;
+  // Validate everything before any state changes, so a rejected keyframe leaves the stored map
+  // exactly as it was (docs/ROBUSTNESS.md).
   SL_CHECK_MSG(!index_of_.count(input.id), "keyframe id {} was already processed", input.id);
+  SL_CHECK_MSG(std::isfinite(input.timestamp), "keyframe {}: timestamp is not finite", input.id);
+  SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp,
+               "keyframe {}: timestamp {} must increase (previous keyframe: {})", input.id,
+               input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp);
+  input.intrinsics.Check();
+  SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
+  SL_CHECK_MSG(input.image.type() == CV_8UC1, "keyframe {}: image must be 8-bit grayscale (CV_8UC1)",
+               input.id);
+  SL_CHECK_MSG((input.intrinsics.width == 0 || input.image.cols == input.intrinsics.width) &&
+                   (input.intrinsics.height == 0 || input.image.rows == input.intrinsics.height),
+               "keyframe {}: image size {}x{} does not match the intrinsics {}x{}", input.id,
+               input.image.cols, input.image.rows, input.intrinsics.width,
+               input.intrinsics.height);
+  if (input.world_from_cam) {
+    const Sim3d& pose = *input.world_from_cam;
+    SL_CHECK_MSG(pose.translation.allFinite() && pose.rotation.coeffs().allFinite() &&
+                     std::isfinite(pose.scale) && pose.scale > 0,
+                 "keyframe {}: pose is not finite (or scale <= 0)", input.id);
+    SL_CHECK_MSG(std::abs(pose.rotation.norm() - 1.0) < 1e-6,
+                 "keyframe {}: pose has a non-unit quaternion (norm {})", input.id,
+                 pose.rotation.norm());
+  }
   SL_CHECK_MSG(
       input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
       "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),

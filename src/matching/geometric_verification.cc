@@ -1,8 +1,6 @@
 #include "sparseloop/matching/geometric_verification.h"
 
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -256,11 +254,7 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
     }
     Eigen::Matrix3d r = query_from_match.rotation.toRotationMatrix();
     Eigen::Vector3d t = query_from_match.translation.normalized();
-    const Eigen::Matrix3d r_before = r;
     RefineEssential(xm, xq, threshold, &r, &t);
-    if (std::getenv("SL_DEBUG_REFINE"))
-      std::fprintf(stderr, "refine: %zu inliers, moved %.3f deg\n", xm.size(),
-                   RotationAngle(Eigen::Quaterniond(r), Eigen::Quaterniond(r_before)) * 57.2958);
     query_from_match = Sim3d(1.0, Eigen::Quaterniond(r).normalized(), t);
   }
   Sim3d match_from_query = query_from_match.Inverse();

@@ -195,6 +195,7 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     d->Get("check_every", &o.check_every);
     d->Get("min_matches", &o.min_matches);
     d->Get("max_verify", &o.max_verify);
+    d->Get("min_inlier_fraction_of_k", &o.min_inlier_fraction_of_k);
     d->Get("min_path_ratio", &o.min_path_ratio);
     d->Get("check_consistency", &o.check_consistency);
     d->Get("consistency_base_deg", &o.consistency_base_deg);
@@ -290,6 +291,7 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"check_every", d.check_every},
             {"min_matches", d.min_matches},
             {"max_verify", d.max_verify},
+        {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
             {"min_path_ratio", d.min_path_ratio},
             {"check_consistency", d.check_consistency},
             {"consistency_base_deg", d.consistency_base_deg},

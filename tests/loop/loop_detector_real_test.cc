@@ -30,6 +30,7 @@ const CastleRun& Castle() {
     for (size_t i = 0; i < r.frames.size(); ++i) {
       KeyframeInput in;
       in.id = static_cast<int64_t>(i + 1);  // view number
+      in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
       in.image = r.frames[i].image;
       in.intrinsics = r.frames[i].intrinsics;
       in.world_from_cam = Sim3d(r.frames[i].world_from_cam);
@@ -94,6 +95,7 @@ class KittiNoLoop : public ::testing::Test {
     for (size_t i = 0; i < images_->size(); ++i) {
       KeyframeInput in;
       in.id = static_cast<int64_t>(i);
+      in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
       in.image = (*images_)[i];
       in.intrinsics = test::KittiIntrinsics();
       in.world_from_cam = poses[i];
@@ -177,6 +179,7 @@ EurocPairResult RunEurocPair(int pair) {
   for (int i : {m, q}) {
     KeyframeInput in;
     in.id = i;
+    in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
     in.image = cv::imread(
         (test::DataDir() / "euroc_loop_pairs" / ("left_img_" + std::to_string(i) + ".png"))
             .string(),

@@ -49,6 +49,7 @@ cv::Mat Shifted(const cv::Mat& a) {
 KeyframeInput Input(int64_t id, const cv::Mat& image) {
   KeyframeInput in;
   in.id = id;
+  in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
   in.image = image;
   in.intrinsics = Camera();
   return in;

@@ -30,6 +30,7 @@ PrNumbers RunRtabmap(const std::vector<cv::Mat>& images, const std::set<std::pai
   for (size_t i = 0; i < images.size(); ++i) {
     KeyframeInput in;
     in.id = static_cast<int64_t>(i);
+    in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
     in.image = images[i];
     in.intrinsics = test::GuessIntrinsics(images[i].cols, images[i].rows);
     const LoopResult r = detector.Process(in);

@@ -151,11 +151,14 @@ TEST_F(BadInput, DuplicateKeyframeId) {
   ExpectRejected(in, "already processed");
 }
 
-TEST_F(BadInput, WrongIntrinsics) {
+TEST_F(BadInput, WrongIntrinsicsFocalLength) {
   KeyframeInput in = ValidInput(3);
   in.intrinsics.fx = -500;
   ExpectRejected(in, "fx must be positive");
-  in = ValidInput(3);
+}
+
+TEST_F(BadInput, WrongIntrinsicsPrincipalPoint) {
+  KeyframeInput in = ValidInput(3);
   in.intrinsics.cx = 5000;
   ExpectRejected(in, "principal point");
 }
