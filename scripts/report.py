@@ -188,8 +188,19 @@ def main():
             base_keys, base_pos = gt[0], gt[1]
         elif base_label is not None:
             base_keys, base_pos = aligned[base_label]
-        lut = {int(k): i for i, k in enumerate(base_keys)} if base_label else {}
-        gt_lut = {int(k): i for i, k in enumerate(gt[0])} if gt is not None and gt[2] == "index" else {}
+        # Loop ids are frame indices. Index-keyed files map directly; time-keyed (TUM) files
+        # written by `sparseloop run` hold one row per frame in frame order, so row = frame.
+        base_kind = gt[2] if base_label == "GT" else traj[base_label][2] if base_label else None
+        if base_kind == "time":
+            lut = {i: i for i in range(len(base_keys))}
+        else:
+            lut = {int(k): i for i, k in enumerate(base_keys)} if base_label else {}
+        if gt is None:
+            gt_lut = {}
+        elif gt[2] == "index":
+            gt_lut = {int(k): i for i, k in enumerate(gt[0])}
+        else:
+            gt_lut = {i: i for i in range(len(gt[0]))}
         for q, m, _ in loops:
             if q not in lut or m not in lut:
                 continue
@@ -246,9 +257,10 @@ def main():
                     if k in ("keyframe", "frame", "query") or v in (None, ""):
                         continue
                     try:
-                        timing.setdefault(k, []).append(float(v))
-                    except ValueError:
-                        pass
+                        value = float(v)
+                    except ValueError:  # a non-numeric column (e.g. status) is not a stage
+                        continue
+                    timing.setdefault(k, []).append(value)
     summary = {}
     if os.path.isfile(fp("summary.json")):
         with open(fp("summary.json")) as f:

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <unordered_map>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -54,6 +55,18 @@ int RunRun(int argc, char** argv) {
     gt = ReadTrajectory(gt_path);
   } else if (dataset.has_gt()) {
     gt = dataset.GtTrajectory();
+  }
+  if (gt && !gt->has_timestamps) {
+    // Index-only GT (KITTI): give each pose its frame's timestamp so that every file written
+    // below shares one time base (TUM files, report, evo).
+    std::unordered_map<int64_t, double> time_of_frame;
+    for (const auto& f : dataset.frames) time_of_frame[f.index] = f.timestamp;
+    bool all = true;
+    for (const auto& p : gt->poses) all &= time_of_frame.count(p.frame) > 0;
+    if (all) {
+      for (auto& p : gt->poses) p.timestamp = time_of_frame.at(p.frame);
+      gt->has_timestamps = true;
+    }
   }
 
   ProgressLine progress("run", flags.quiet);
@@ -104,7 +117,13 @@ int RunRun(int argc, char** argv) {
     std::vector<Detection> detections;
     for (const LoopResult& l : result.loops) detections.push_back({l.query_id, l.match_id, l.score});
     const LoopPrResult pr = EvaluateLoops(detections, gt_pairs);
-    AddLoopKeys(summary, &pr);
+    // AddLoopKeys writes flat loop_* keys plus a nested "loops" object; "loops" is our count,
+    // so the object goes under "loop_eval".
+    nlohmann::json loop_eval;
+    AddLoopKeys(loop_eval, &pr);
+    for (auto& [key, value] : loop_eval.items()) {
+      summary[key == "loops" ? "loop_eval" : key] = value;
+    }
     WritePrCurveCsv(out / "pr_curve.csv", pr);
     WriteFileAtomically(out / "gt_loops.txt", [&](std::ostream& os) {
       os << "# query match: GT revisits (distance < " << gl.distance << ", gap >= " << gl.min_gap

@@ -228,6 +228,8 @@ void PrintRunSummary(std::ostream& os, const nlohmann::json& s, const Trajectory
     os << "  loops correct/false  " << s["loops_correct"] << " / " << s["loops_false"]
        << "  (GT distance < " << std::setprecision(3) << s["gt_loop_distance"].get<double>()
        << ")\n";
+    os << "  accepted correct/false " << s["accepted_loops_correct"] << " / "
+       << s["accepted_loops_false"] << "  (after outlier rejection)\n";
   }
   os << std::fixed << std::setprecision(2);
   os << "  ms per keyframe      median " << s["timing_ms"]["total"]["median"].get<double>()
