@@ -8,9 +8,9 @@
 
 namespace {
 // A valid 8x4 grayscale PNG header (signature + IHDR); the loader only reads the size.
-const unsigned char kPng[] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a, 0, 0, 0, 13,
-                              'I',  'H', 'D', 'R', 0,    0,    0,    8,    0, 0, 0, 4,
-                              8,    0,   0,   0,   0,    0x5c, 0x6d, 0x1a, 0x36};
+const unsigned char kPng[] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a, 0,    0,    0,
+                              13,   'I', 'H', 'D', 'R',  0,    0,    0,    8,    0,    0,
+                              0,    4,   8,   0,   0,    0,    0,    0x5c, 0x6d, 0x1a, 0x36};
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

@@ -7,9 +7,9 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using sparseloop::TrajectoryFormat;
   const auto path = sparseloop::fuzz::WriteInput(data, size, "trajectory.txt");
-  for (TrajectoryFormat f : {TrajectoryFormat::kAuto, TrajectoryFormat::kTum,
-                             TrajectoryFormat::kKitti, TrajectoryFormat::kEuroc,
-                             TrajectoryFormat::kPositions}) {
+  for (TrajectoryFormat f :
+       {TrajectoryFormat::kAuto, TrajectoryFormat::kTum, TrajectoryFormat::kKitti,
+        TrajectoryFormat::kEuroc, TrajectoryFormat::kPositions}) {
     try {
       sparseloop::ReadTrajectory(path, f);
     } catch (const sparseloop::Error&) {

@@ -11,8 +11,8 @@
 namespace sparseloop::fuzz {
 
 inline std::filesystem::path WriteInput(const uint8_t* data, size_t size, const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("sparseloop_fuzz_" + std::to_string(getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("sparseloop_fuzz_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
   const auto path = dir / name;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);

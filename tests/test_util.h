@@ -41,15 +41,15 @@ inline std::mt19937_64 SeededRng(uint64_t salt = 0) { return std::mt19937_64(202
 
 // Skips the test (with a clear message) when a real-data folder is absent; fails instead when
 // CI=true, because CI must exercise the real data.
-#define SL_REQUIRE_DATA(relative)                                                           \
-  do {                                                                                      \
-    const auto sl_data_path = ::sparseloop::test::DataDir() / (relative);                   \
-    if (!std::filesystem::exists(sl_data_path)) {                                           \
-      if (::sparseloop::test::InCi()) {                                                     \
-        FAIL() << "real data missing in CI: " << sl_data_path                               \
-               << " (set SPARSELOOP_DATA or place ../shared/data next to the repo)";        \
-      }                                                                                     \
-      GTEST_SKIP() << "real data not found at " << sl_data_path                             \
-                   << "; set SPARSELOOP_DATA to the shared data folder to run this test";   \
-    }                                                                                       \
+#define SL_REQUIRE_DATA(relative)                                                         \
+  do {                                                                                    \
+    const auto sl_data_path = ::sparseloop::test::DataDir() / (relative);                 \
+    if (!std::filesystem::exists(sl_data_path)) {                                         \
+      if (::sparseloop::test::InCi()) {                                                   \
+        FAIL() << "real data missing in CI: " << sl_data_path                             \
+               << " (set SPARSELOOP_DATA or place ../shared/data next to the repo)";      \
+      }                                                                                   \
+      GTEST_SKIP() << "real data not found at " << sl_data_path                           \
+                   << "; set SPARSELOOP_DATA to the shared data folder to run this test"; \
+    }                                                                                     \
   } while (false)

@@ -115,7 +115,8 @@ int RunRun(int argc, char** argv) {
     gl.min_gap = std::max(1, options.detector.search.exclude_recent);
     const std::vector<LoopPair> gt_pairs = DeriveGtLoops(*gt, gl);
     std::vector<Detection> detections;
-    for (const LoopResult& l : result.loops) detections.push_back({l.query_id, l.match_id, l.score});
+    for (const LoopResult& l : result.loops)
+      detections.push_back({l.query_id, l.match_id, l.score});
     const LoopPrResult pr = EvaluateLoops(detections, gt_pairs);
     // AddLoopKeys writes flat loop_* keys plus a nested "loops" object; "loops" is our count,
     // so the object goes under "loop_eval".

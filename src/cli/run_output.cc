@@ -61,20 +61,6 @@ Stats ComputeStats(std::vector<double> v) {
   return s;
 }
 
-const char* PoseKindName(RelativePoseKind k) {
-  switch (k) {
-    case RelativePoseKind::kNone:
-      return "none";
-    case RelativePoseKind::kSE3UnitTranslation:
-      return "se3_unit_translation";
-    case RelativePoseKind::kSE3Metric:
-      return "se3_metric";
-    case RelativePoseKind::kSim3:
-      return "sim3";
-  }
-  return "none";
-}
-
 std::string Fmt(const std::optional<double>& v, int precision = 3) {
   if (!v) return "n/a";
   std::ostringstream os;
@@ -147,7 +133,7 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
       const auto& q = l.match_from_query.rotation;
       const auto& t = l.match_from_query.translation;
       os << l.query_id << ',' << l.match_id << ',' << l.score << ',' << l.inliers << ','
-         << ToString(l.status) << ',' << PoseKindName(l.pose_kind) << ',';
+         << ToString(l.status) << ',' << ToString(l.pose_kind) << ',';
       if (accepted) os << ((*accepted)[i] ? 1 : 0);
       os << ',';
       if (truth && truth->correct[i]) os << (*truth->correct[i] ? 1 : 0);
@@ -162,8 +148,9 @@ void WriteTimingsCsv(const std::filesystem::path& path, const std::vector<LoopRe
     os << "keyframe,status,extract_ms,search_ms,match_ms,verify_ms,total_ms\n";
     os << std::setprecision(6);
     for (const LoopResult& r : results) {
-      os << r.query_id << ',' << ToString(r.status) << ',' << r.timings.extract_ms << ',' << r.timings.search_ms << ',' << r.timings.match_ms << ','
-         << r.timings.verify_ms << ',' << r.timings.total_ms << '\n';
+      os << r.query_id << ',' << ToString(r.status) << ',' << r.timings.extract_ms << ','
+         << r.timings.search_ms << ',' << r.timings.match_ms << ',' << r.timings.verify_ms << ','
+         << r.timings.total_ms << '\n';
     }
   });
 }

@@ -90,13 +90,12 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
                input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp);
   input.intrinsics.Check();
   SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
-  SL_CHECK_MSG(input.image.type() == CV_8UC1, "keyframe {}: image must be 8-bit grayscale (CV_8UC1)",
-               input.id);
+  SL_CHECK_MSG(input.image.type() == CV_8UC1,
+               "keyframe {}: image must be 8-bit grayscale (CV_8UC1)", input.id);
   SL_CHECK_MSG((input.intrinsics.width == 0 || input.image.cols == input.intrinsics.width) &&
                    (input.intrinsics.height == 0 || input.image.rows == input.intrinsics.height),
                "keyframe {}: image size {}x{} does not match the intrinsics {}x{}", input.id,
-               input.image.cols, input.image.rows, input.intrinsics.width,
-               input.intrinsics.height);
+               input.image.cols, input.image.rows, input.intrinsics.width, input.intrinsics.height);
   if (input.world_from_cam) {
     const Sim3d& pose = *input.world_from_cam;
     SL_CHECK_MSG(pose.translation.allFinite() && pose.rotation.coeffs().allFinite() &&

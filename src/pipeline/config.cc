@@ -291,7 +291,7 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"check_every", d.check_every},
             {"min_matches", d.min_matches},
             {"max_verify", d.max_verify},
-        {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
+            {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
             {"min_path_ratio", d.min_path_ratio},
             {"check_consistency", d.check_consistency},
             {"consistency_base_deg", d.consistency_base_deg},

@@ -29,7 +29,7 @@ const CastleRun& Castle() {
     LoopDetector detector(LoopDetector::Options{});
     for (size_t i = 0; i < r.frames.size(); ++i) {
       KeyframeInput in;
-      in.id = static_cast<int64_t>(i + 1);  // view number
+      in.id = static_cast<int64_t>(i + 1);        // view number
       in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
       in.image = r.frames[i].image;
       in.intrinsics = r.frames[i].intrinsics;

@@ -23,7 +23,8 @@ StoredKeyframe MakeKeyframe(int64_t session, int64_t id, int k, bool depths) {
   t << 0.1 * id, 0.2, -0.3, 0.01 * id, 0.02, 0.03, 0.001 * id;
   kf.raw_world_from_cam = Sim3d::Exp(t);
   kf.num_features = k;
-  for (int i = 0; i < k * 32; ++i) kf.descriptors.push_back(static_cast<uint8_t>((id * 31 + i) & 0xff));
+  for (int i = 0; i < k * 32; ++i)
+    kf.descriptors.push_back(static_cast<uint8_t>((id * 31 + i) & 0xff));
   for (int i = 0; i < k * 2; ++i) kf.keypoints.push_back(static_cast<float>(id + 0.5 * i));
   if (depths) {
     for (int i = 0; i < k; ++i) kf.depths.push_back(static_cast<float>(1.0 + i));
@@ -98,9 +99,9 @@ TEST(MapDatabase, ForeignSqliteFileGivesClearError) {
   const auto path = test::TempDir() / "foreign.db";
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE t(x); INSERT INTO t VALUES(1);", nullptr, nullptr,
-                         nullptr),
-            SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(db, "CREATE TABLE t(x); INSERT INTO t VALUES(1);", nullptr, nullptr, nullptr),
+      SQLITE_OK);
   sqlite3_close(db);
   try {
     MapDatabase::Open(path);

@@ -5,7 +5,8 @@
 //
 // Schema (version kSchemaVersion, checked on open; application_id identifies our files):
 //   sessions(id INTEGER PRIMARY KEY, created_unix REAL, label TEXT)
-//   keyframes(session INTEGER, id INTEGER, timestamp REAL, pose BLOB(8 doubles: qx qy qz qw tx ty tz s),
+//   keyframes(session INTEGER, id INTEGER, timestamp REAL, pose BLOB(8 doubles: qx qy qz qw tx ty
+//   tz s),
 //             num_features INTEGER, descriptors BLOB, keypoints BLOB, depths BLOB,
 //             PRIMARY KEY(session, id))
 //   loops(session INTEGER, query INTEGER, match_session INTEGER, match INTEGER, inliers INTEGER,
@@ -88,7 +89,7 @@ class MapDatabase {
   void Flush();
 
   std::vector<StoredKeyframe> LoadKeyframes(int64_t session) const;  // ordered by id
-  std::vector<StoredKeyframe> LoadAllKeyframes() const;               // by session, id
+  std::vector<StoredKeyframe> LoadAllKeyframes() const;              // by session, id
   std::vector<StoredLoop> LoadLoops() const;
   int64_t CountKeyframes() const;
   const std::filesystem::path& path() const { return path_; }

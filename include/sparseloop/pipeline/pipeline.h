@@ -20,7 +20,7 @@ namespace sparseloop {
 struct PipelineOptions {
   LoopDetector::Options detector;
   PoseGraphOptions optimizer;
-  OdometryWeighting odometry;         // information of the raw odometry edges
+  OdometryWeighting odometry;           // information of the raw odometry edges
   DirectionLoopOptions direction_loop;  // loops measured as rotation + unit direction (no depth)
   VertexType vertex_type = VertexType::kSim3;  // kSim3 for monocular raw poses
   // Loops with a metric or Sim(3) relative pose (depths available): standard deviations.
@@ -54,16 +54,16 @@ struct PipelineResult {
   std::vector<int64_t> keyframe_frames;   // dataset frame index of each processed keyframe
   size_t skipped_frames = 0;              // unreadable images (see skip_unreadable_frames)
   PoseGraphSummary optimizer;
-  Trajectory raw;        // raw poses matched to the dataset's frames
-  Trajectory corrected;  // same frames, corrected
+  Trajectory raw;                   // raw poses matched to the dataset's frames
+  Trajectory corrected;             // same frames, corrected
   double bytes_per_keyframe = 0.0;  // mean KeyframeRecord::Bytes() of the stored keyframes
   double detect_seconds = 0.0;      // wall time of the detection loop (image decode included)
 };
 
 // The raw trajectory matched to the dataset's frames (by timestamp or index, see options).
 // Throws FileError when a frame has no raw pose (e.g. a pose file shorter than the image list).
-Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw,
-                                 double max_dt, const std::filesystem::path& raw_path);
+Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, double max_dt,
+                                 const std::filesystem::path& raw_path);
 
 // Mapped pixels as written by `sparseloop render` (DIR/mapped/NNNNNN.txt: "u v depth" per line,
 // depth <= 0 unknown). Throws FileError on a malformed file.
@@ -81,7 +81,7 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw_matched
 // frames are closer than `threshold` (GT units). GT poses are found by timestamp when the GT has
 // timestamps (nearest within max_dt of the raw frame's time), else by frame index.
 struct LoopTruth {
-  double threshold = 0.0;                  // GT units
+  double threshold = 0.0;                    // GT units
   std::vector<std::optional<bool>> correct;  // per loop; nullopt when a frame has no GT pose
   size_t num_correct() const;
   size_t num_false() const;
