@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/io/trajectory_io.h"
@@ -25,7 +26,7 @@ int RunConvert(int argc, char** argv) {
   app.add_option("--from", from, "input format: auto (default), tum, kitti, euroc, positions");
   app.add_flag("--drop-duplicates", read_options.drop_duplicate_timestamps,
                "keep the first of repeated timestamps / frame indices instead of failing");
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
 
   const TrajectoryFormat in_format = ParseTrajectoryFormat(from);
   const TrajectoryFormat out_format = ParseTrajectoryFormat(to);

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
@@ -24,6 +25,8 @@
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/map/map_database.h"
+#include "sparseloop/pipeline/map_records.h"
 #include "sparseloop/pipeline/config.h"
 
 namespace sparseloop::cli {
@@ -69,7 +72,7 @@ nlohmann::json Stats(std::vector<double> values) {
 
 int RunDetect(int argc, char** argv) {
   CLI::App app{"Detect loop closures in an image sequence (writes loops.csv and summary.json)"};
-  std::string dataset_spec, poses, intrinsics_spec, search_name, config_path, out_dir;
+  std::string dataset_spec, poses, intrinsics_spec, search_name, config_path, out_dir, map_path;
   std::optional<int> k;
   app.add_option("--dataset", dataset_spec, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
       ->required();
@@ -79,7 +82,10 @@ int RunDetect(int argc, char** argv) {
   app.add_option("--search", search_name, "search area: paper | radius | global");
   app.add_option("--config", config_path, "JSON options ({\"detector\": {...}})");
   app.add_option("--out", out_dir, "output directory")->required();
-  app.parse(argc, argv);
+  app.add_option("--map", map_path,
+                 "persistent map (SQLite): earlier sessions in it are searched too (multi-session "
+                 "loops, loops.csv match_session > 0); this run is stored as a new session");
+  Parse(app, argc, argv);
 
   PipelineOptions pipeline_options;
   if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);
@@ -106,6 +112,17 @@ int RunDetect(int argc, char** argv) {
   options.Check();
   LoopDetector detector(options);
 
+  // Multi-session: load the earlier sessions of the map, then store this run as a new one.
+  std::unique_ptr<MapDatabase> map;
+  int64_t map_session = 0;
+  size_t prior_keyframes = 0;
+  if (!map_path.empty()) {
+    map = MapDatabase::Open(map_path);
+    const float focal = static_cast<float>(0.5 * (dataset.intrinsics.fx + dataset.intrinsics.fy));
+    prior_keyframes = LoadPriorSessions(*map, focal, &detector);
+    map_session = map->BeginSession("detect " + dataset_spec);
+  }
+
   std::filesystem::create_directories(out_dir);
   const bool progress = isatty(fileno(stderr));
   std::vector<LoopResult> loops;
@@ -126,6 +143,11 @@ int RunDetect(int argc, char** argv) {
       SL_CHECK_MSG(false, "frame {} has no pose while others do", frame.index);
     const LoopResult r = detector.Process(input);
     bytes += detector.record(frame.index).Bytes();
+    if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), map_session));
+    if (map && r.detected()) {
+      map->PutLoop({map_session, r.query_id, r.match_session == 0 ? map_session : r.match_session,
+                    r.match_id, r.inliers, r.score, r.match_from_query, true});
+    }
     t_extract.push_back(r.timings.extract_ms);
     t_search.push_back(r.timings.search_ms);
     t_match.push_back(r.timings.match_ms);
@@ -139,18 +161,19 @@ int RunDetect(int argc, char** argv) {
     }
   }
   if (progress) std::fprintf(stderr, "\n");
+  if (map) map->Flush();
   const double wall_ms = wall.ElapsedMs();
 
   const std::filesystem::path out(out_dir);
   WriteFileAtomically(out / "loops.csv", [&](std::ostream& os) {
-    os << "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale\n";
+    os << "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale,match_session\n";
     for (const auto& l : loops) {
       const auto& p = l.match_from_query;
       os << fmt::format(
-          "{},{},{:.6f},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n",
+          "{},{},{:.6f},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}\n",
           l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), p.rotation.x(),
           p.rotation.y(), p.rotation.z(), p.rotation.w(), p.translation.x(), p.translation.y(),
-          p.translation.z(), p.scale);
+          p.translation.z(), p.scale, l.match_session);
     }
   });
   nlohmann::json summary = {
@@ -168,7 +191,15 @@ int RunDetect(int argc, char** argv) {
         {"verify", Stats(t_verify)},
         {"total", Stats(t_total)}}},
       {"total_ms", wall_ms},
+      {"cross_session_loops",
+       std::count_if(loops.begin(), loops.end(),
+                     [](const LoopResult& l) { return l.match_session != 0; })},
   };
+  if (map) {
+    summary["map"] = {{"path", map_path},
+                      {"session", map_session},
+                      {"prior_keyframes", prior_keyframes}};
+  }
   summary["config"] = ConfigToJson([&] {
     PipelineOptions p = pipeline_options;
     p.detector = options;
@@ -180,7 +211,9 @@ int RunDetect(int argc, char** argv) {
                            dataset.frames.size(), loops.size(),
                            double(bytes) / dataset.frames.size(), wall_ms / dataset.frames.size());
   for (const auto& l : loops)
-    std::cout << fmt::format("loop {} -> {}  inliers {}  score {:.3f}\n", l.query_id, l.match_id,
+    std::cout << fmt::format("loop {} -> {}{}  inliers {}  score {:.3f}\n", l.query_id,
+                             l.match_id,
+                             l.match_session ? fmt::format(" (session {})", l.match_session) : "",
                              l.inliers, l.score);
   return 0;
 }

@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/eval/json.h"
@@ -99,7 +100,7 @@ int RunEval(int argc, char** argv) {
                  "allowed |match - gt match| in frames for a correct loop")
       ->capture_default_str();
   app.add_option("--json", json_path, "write all results as JSON to this file (atomically)");
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
 
   options.alignment = ParseAlignment(align);
   SL_CHECK_MSG(rpe_unit == "frames" || rpe_unit == "m", "--rpe-unit must be frames or m, got '{}'",

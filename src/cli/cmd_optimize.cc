@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/io/atomic_file.h"
@@ -31,7 +32,7 @@ int RunOptimize(int argc, char** argv) {
   app.add_option("--max-iterations", options.max_iterations, "Levenberg-Marquardt iterations")
       ->check(CLI::PositiveNumber);
   app.add_option("--threads", options.num_threads, "Ceres threads")->check(CLI::PositiveNumber);
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
 
   const std::map<std::string, RobustLoss> losses = {{"none", RobustLoss::kTrivial},
                                                     {"huber", RobustLoss::kHuber},

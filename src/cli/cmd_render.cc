@@ -1,6 +1,7 @@
 // sparseloop render: synthetic sequence (images + GT + drifting raw trajectory) in KITTI layout.
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -8,6 +9,7 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/io/trajectory_io.h"
@@ -38,7 +40,8 @@ int RunRender(int argc, char** argv) {
   uint64_t seed = 1;
   syn::FlightPlanOptions plan;
   syn::SequenceOptions seq;
-  bool no_photometric = false, no_mapped = false;
+  bool no_photometric = false, no_mapped = false, poses_only = false;
+  double drift_scale = 1.0, photometric_scale = 1.0;
   app.add_option("--world", world_name, "aerial or street")
       ->required()
       ->check(CLI::IsMember({"aerial", "street"}));
@@ -77,8 +80,16 @@ int RunRender(int argc, char** argv) {
   app.add_option("--raw-format", raw_format, "format of --raw")->capture_default_str();
   app.add_flag("--depth", seq.write_depth, "also write depth_0/NNNNNN.png (metres * 256)");
   app.add_flag("--no-mapped", no_mapped, "do not write mapped/NNNNNN.txt");
+  app.add_option("--drift", drift_scale,
+                 "multiplies every simulated drift rate (rotation, translation, scale); 0: none")
+      ->capture_default_str();
+  app.add_option("--photometric", photometric_scale,
+                 "multiplies the exposure/gamma change amplitudes")
+      ->capture_default_str();
+  app.add_flag("--poses-only", poses_only,
+               "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
   app.add_option("--out", out_dir, "output folder")->required();
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
 
   seq.num_threads = threads;
   seq.photometric_drift = !no_photometric;
@@ -86,6 +97,17 @@ int RunRender(int argc, char** argv) {
   seq.render.seed = syn::HashCombine(seed, 1);
   seq.drift.seed = syn::HashCombine(seed, 2);
   seq.photometric.seed = syn::HashCombine(seed, 3);
+  SL_CHECK_MSG(drift_scale >= 0.0 && std::isfinite(drift_scale), "--drift must be >= 0, got {}",
+               drift_scale);
+  SL_CHECK_MSG(photometric_scale >= 0.0 && std::isfinite(photometric_scale),
+               "--photometric must be >= 0, got {}", photometric_scale);
+  seq.drift.rotation_noise_deg_per_sqrt_m *= drift_scale;
+  seq.drift.rotation_bias_deg_per_100m *= drift_scale;
+  seq.drift.translation_noise *= drift_scale;
+  seq.drift.scale_noise_per_sqrt_m *= drift_scale;
+  seq.drift.scale_bias_per_100m *= drift_scale;
+  seq.photometric.gain_amplitude *= photometric_scale;
+  seq.photometric.gamma_amplitude *= photometric_scale;
 
   std::shared_ptr<const syn::TextureSet> textures;
   if (textures_dir.empty()) {
@@ -144,6 +166,17 @@ int RunRender(int argc, char** argv) {
     if (raw->size() > gt.size()) raw->poses.resize(gt.size());
   }
 
+  if (poses_only) {
+    SL_CHECK_MSG(!raw, "--poses-only simulates the drift; it cannot be combined with --raw");
+    const syn::DriftResult drift = syn::SimulateDrift(gt, seq.drift);
+    std::filesystem::create_directories(out_dir);
+    WriteTrajectory(std::filesystem::path(out_dir) / "poses_gt.txt", gt, TrajectoryFormat::kKitti);
+    WriteTrajectory(std::filesystem::path(out_dir) / "poses_raw.txt", drift.raw,
+                    TrajectoryFormat::kKitti);
+    std::cout << fmt::format("wrote poses_gt.txt and poses_raw.txt ({} poses) to {}\n", gt.size(),
+                             out_dir);
+    return 0;
+  }
   const bool tty = isatty(fileno(stderr));
   auto progress = [&](int64_t done, int64_t total) {
     if (tty && (done % 10 == 0 || done == total)) {

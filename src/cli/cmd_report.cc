@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/synthetic/report.h"
 
@@ -21,7 +22,7 @@ int RunReport(int argc, char** argv) {
   app.add_option("--false-loop-distance", options.false_loop_distance,
                  "GT distance (m) beyond which an accepted loop is drawn as false")
       ->capture_default_str();
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
   options.script = script;
   options.python = python;
   const auto result = synthetic::MakeReport(dir, options);

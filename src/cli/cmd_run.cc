@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "cli/cli_util.h"
 #include "cli/command.h"
 #include "cli/run_output.h"
 #include "sparseloop/core/check.h"
@@ -33,11 +34,13 @@ int RunRun(int argc, char** argv) {
   app.add_option("--vertex", vertex,
                  "Pose-graph vertices: sim3 (monocular, default) | se3 (metric poses)")
       ->check(CLI::IsMember({"sim3", "se3"}));
-  app.add_option("--map", map_path, "Persistent map database (SQLite) to store this session in");
+  app.add_option("--map", map_path,
+                 "Persistent map database (SQLite): earlier sessions in it are loaded for "
+                 "multi-session loop closure, and this run is stored as a new session");
   app.add_option("--gt-loop-distance", gt_loop_distance,
                  "A detected loop is 'correct' when the GT positions of its frames are closer "
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
-  app.parse(argc, argv);
+  Parse(app, argc, argv);
 
   PipelineOptions options = PipelineOptionsFromFlags(flags);
   if (!vertex.empty())
@@ -85,7 +88,12 @@ int RunRun(int argc, char** argv) {
 
   std::optional<LoopTruth> truth;
   if (gt) truth = ClassifyLoopsAgainstGt(result.loops, *gt, raw, gt_loop_distance);
-  WriteLoopsCsv(out / "loops.csv", result.loops, &result.loop_accepted, truth ? &*truth : nullptr);
+  {
+    // In-session loops first (accepted / correct known), then loops into earlier map sessions.
+    std::vector<LoopResult> rows = result.loops;
+    rows.insert(rows.end(), result.cross_session_loops.begin(), result.cross_session_loops.end());
+    WriteLoopsCsv(out / "loops.csv", rows, &result.loop_accepted, truth ? &*truth : nullptr);
+  }
   WriteTimingsCsv(out / "timings.csv", result.frame_results);
 
   nlohmann::json summary =
@@ -93,6 +101,7 @@ int RunRun(int argc, char** argv) {
   summary["command"] = "run";
   summary["dataset"] = flags.dataset;
   summary["skipped_frames"] = result.skipped_frames;
+  summary["cross_session_loops"] = result.cross_session_loops.size();
   summary["optimizer"] = {{"status", ToString(result.optimizer.status)},
                           {"initial_cost", result.optimizer.initial_cost},
                           {"final_cost", result.optimizer.final_cost},

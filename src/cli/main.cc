@@ -44,8 +44,13 @@ int main(int argc, char** argv) {
     if (command.name != name) continue;
     try {
       return command.run(argc - 1, argv + 1);
+    } catch (const CLI::CallForHelp&) {
+      return 0;  // the help text was printed by cli::Parse
+    } catch (const CLI::CallForAllHelp&) {
+      return 0;
     } catch (const CLI::ParseError& e) {
-      std::cerr << "sparseloop " << name << ": " << e.what() << "\n";
+      std::cerr << "sparseloop " << name << ": " << e.what() << " (see: sparseloop " << name
+                << " --help)\n";
       return e.get_exit_code() == 0 ? 0 : 2;
     } catch (const sparseloop::Error& e) {
       std::cerr << "sparseloop " << name << ": error: " << e.what() << "\n";

@@ -126,7 +126,7 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
                    const std::vector<bool>* accepted, const LoopTruth* truth) {
   WriteFileAtomically(path, [&](std::ostream& os) {
     os << "query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,"
-          "scale\n";
+          "scale,match_session\n";
     os << std::setprecision(10);
     for (size_t i = 0; i < loops.size(); ++i) {
       const LoopResult& l = loops[i];
@@ -134,11 +134,13 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
       const auto& t = l.match_from_query.translation;
       os << l.query_id << ',' << l.match_id << ',' << l.score << ',' << l.inliers << ','
          << ToString(l.status) << ',' << ToString(l.pose_kind) << ',';
-      if (accepted) os << ((*accepted)[i] ? 1 : 0);
+      if (accepted && i < accepted->size()) os << ((*accepted)[i] ? 1 : 0);
       os << ',';
-      if (truth && truth->correct[i]) os << (*truth->correct[i] ? 1 : 0);
+      if (truth && i < truth->correct.size() && truth->correct[i])
+        os << (*truth->correct[i] ? 1 : 0);
       os << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ','
-         << t.y() << ',' << t.z() << ',' << l.match_from_query.scale << '\n';
+         << t.y() << ',' << t.z() << ',' << l.match_from_query.scale << ',' << l.match_session
+         << '\n';
     }
   });
 }

@@ -10,6 +10,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "masked_orb.h"
 #include "sparseloop/core/check.h"
 
 namespace sparseloop {
@@ -32,6 +33,23 @@ FeatureRanking ParseFeatureRanking(const std::string& name) {
   if (name == "grid") return FeatureRanking::kGridResponse;
   SL_CHECK_MSG(false, "feature ranking must be popcount, response or grid, got '{}'", name);
   return FeatureRanking::kResponse;
+}
+
+const char* ToString(OrbBackend backend) {
+  switch (backend) {
+    case OrbBackend::kOpenCv:
+      return "opencv";
+    case OrbBackend::kFast:
+      return "fast";
+  }
+  return "unknown";
+}
+
+OrbBackend ParseOrbBackend(const std::string& name) {
+  if (name == "opencv") return OrbBackend::kOpenCv;
+  if (name == "fast") return OrbBackend::kFast;
+  SL_CHECK_MSG(false, "ORB backend must be opencv or fast, got '{}'", name);
+  return OrbBackend::kFast;
 }
 
 void GradientMaskOptions::Check() const {
@@ -69,7 +87,14 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
   SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");
   const int rows = gray.rows;
   const int cols = gray.cols;
-  // Gradient magnitude (central differences, L2), clamped to [0, 255].
+  // Gradient magnitude (central differences, L2), clamped to [0, 255]. |gx|, |gy| <= 127, so
+  // floor(sqrt(gx^2 + gy^2)) comes from a table (exactly the float sqrt; 4x faster than calling it).
+  static const std::vector<uint8_t> kSqrt = [] {
+    std::vector<uint8_t> t(2 * 127 * 127 + 1);
+    for (size_t i = 0; i < t.size(); ++i)
+      t[i] = static_cast<uint8_t>(std::min(static_cast<int>(std::sqrt(float(i))), 255));
+    return t;
+  }();
   cv::Mat mag(rows, cols, CV_8UC1, cv::Scalar(0));
   for (int y = 1; y + 1 < rows; ++y) {
     const uint8_t* up = gray.ptr<uint8_t>(y - 1);
@@ -79,8 +104,7 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
     for (int x = 1; x + 1 < cols; ++x) {
       const int gx = (int(mid[x + 1]) - int(mid[x - 1])) / 2;
       const int gy = (int(down[x]) - int(up[x])) / 2;
-      const int m = static_cast<int>(std::sqrt(float(gx * gx + gy * gy)));
-      out[x] = static_cast<uint8_t>(std::min(m, 255));
+      out[x] = kSqrt[gx * gx + gy * gy];
     }
   }
   // Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
@@ -227,17 +251,45 @@ void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions&
                  "mapped_depths needs mapped_pixels of the same length");
   }
 
-  auto orb = cv::ORB::create(options.orb_candidates, static_cast<float>(options.orb_scale_factor),
-                             options.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
-                             options.orb_fast_threshold);
   std::vector<cv::KeyPoint> keypoints;
-  cv::Mat desc;
-  orb->detectAndCompute(image, mask, keypoints, desc);
-  std::vector<Descriptor> all(keypoints.size());
-  for (size_t i = 0; i < keypoints.size(); ++i) std::memcpy(all[i].data(), desc.ptr(int(i)), 32);
+  std::vector<Descriptor> all;  // descriptors of `keypoints` (kOpenCv, popcount) or of `keep`
+  std::vector<int> keep;
+  if (options.orb_backend == OrbBackend::kOpenCv) {
+    auto orb = cv::ORB::create(options.orb_candidates, static_cast<float>(options.orb_scale_factor),
+                               options.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                               options.orb_fast_threshold);
+    cv::Mat desc;
+    orb->detectAndCompute(image, mask, keypoints, desc);
+    all.resize(keypoints.size());
+    for (size_t i = 0; i < keypoints.size(); ++i) std::memcpy(all[i].data(), desc.ptr(int(i)), 32);
+    keep = RankFeatures(keypoints, all, options.ranking, options.max_features, size,
+                        options.grid_cols, options.grid_rows);
+  } else {
+    // Same keypoints as the masked cv::ORB call above (docs/DETECTOR.md, Speed). BRIEF is needed
+    // before ranking only for popcount; response / grid rank first and describe the K kept.
+    internal::MaskedOrbParams params;
+    params.nfeatures = options.orb_candidates;
+    params.scale_factor = static_cast<float>(options.orb_scale_factor);
+    params.levels = options.orb_levels;
+    params.fast_threshold = options.orb_fast_threshold;
+    internal::DetectMaskedOrb(image, mask, params, &keypoints);
+    if (options.ranking == FeatureRanking::kPopcount) {
+      std::vector<int> every(keypoints.size());
+      std::iota(every.begin(), every.end(), 0);
+      internal::ComputeMaskedOrbDescriptors(every, params, &keypoints, &all);
+      keep = RankFeatures(keypoints, all, options.ranking, options.max_features, size,
+                          options.grid_cols, options.grid_rows);
+    } else {
+      const std::vector<Descriptor> unused(keypoints.size());  // ranking ignores descriptors
+      keep = RankFeatures(keypoints, unused, options.ranking, options.max_features, size,
+                          options.grid_cols, options.grid_rows);
+      std::vector<Descriptor> kept;
+      internal::ComputeMaskedOrbDescriptors(keep, params, &keypoints, &kept);
+      all.assign(keypoints.size(), Descriptor{0, 0, 0, 0});
+      for (size_t j = 0; j < keep.size(); ++j) all[keep[j]] = kept[j];
+    }
+  }
 
-  const std::vector<int> keep = RankFeatures(keypoints, all, options.ranking, options.max_features,
-                                             size, options.grid_cols, options.grid_rows);
   std::vector<cv::Point2f> pixels;
   pixels.reserve(keep.size());
   for (int i : keep) pixels.push_back(keypoints[i].pt);

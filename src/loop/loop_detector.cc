@@ -31,11 +31,23 @@ const char* ToString(LoopStatus status) {
   return "unknown";
 }
 
+const char* ToString(CandidateRetrieval retrieval) {
+  return retrieval == CandidateRetrieval::kAnn ? "ann" : "brute_force";
+}
+
+CandidateRetrieval ParseCandidateRetrieval(const std::string& name) {
+  if (name == "brute_force") return CandidateRetrieval::kBruteForce;
+  if (name == "ann") return CandidateRetrieval::kAnn;
+  SL_CHECK_MSG(false, "unknown candidate retrieval '{}' (expected brute_force | ann)", name);
+  return CandidateRetrieval::kBruteForce;
+}
+
 void LoopDetector::Options::Check() const {
   features.Check();
   search.Check();
   match.Check();
   verify.Check();
+  ann.Check();
   SL_CHECK_MSG(check_every >= 1, "check_every must be >= 1 keyframe, got {}", check_every);
   SL_CHECK_MSG(min_matches >= 5, "min_matches must be >= 5, got {}", min_matches);
   SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
@@ -63,6 +75,7 @@ LoopDetector::LoopDetector(Options options)
   verify_ = options_.verify;
   verify_.seed = options_.seed;
   verify_.min_inliers = options_.EffectiveMinInliers();
+  if (options_.retrieval == CandidateRetrieval::kAnn) ann_.emplace(options_.ann);
 }
 
 const KeyframeRecord& LoopDetector::record(int64_t id) const {
@@ -109,9 +122,13 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
       input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
       "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),
       input.mapped_pixels.size());
-  if (!input.world_from_cam) {
-    SL_CHECK_MSG(options_.search.strategy == SearchStrategy::kGlobal,
-                 "keyframe {} has no pose: only the global search strategy works without poses",
+  // Without a pose under a geometric search strategy: "tracking lost", relocalise.
+  const bool relocalize =
+      !input.world_from_cam && options_.search.strategy != SearchStrategy::kGlobal;
+  if (relocalize) {
+    SL_CHECK_MSG(options_.relocalize_without_pose,
+                 "keyframe {} has no pose: only the global search strategy works without poses "
+                 "(or enable relocalize_without_pose)",
                  input.id);
   }
 
@@ -146,9 +163,25 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   any_missing_pose_ |= !rec.has_pose;
   index_of_[rec.id] = index;
   path_length_.push_back(path);
-  search_.Add(rec.id, position);
+  if (!relocalize) search_.Add(rec.id, position);  // no place on the trajectory without a pose
   records_.push_back(std::move(rec));
   const KeyframeRecord& query = records_.back();
+
+  if (relocalize) {
+    result.relocalization = true;
+    if (query.size() < 5) {
+      result.status = LoopStatus::kNoFeatures;
+    } else {
+      std::vector<PoolEntry> pool;
+      for (size_t i = 0; i + 1 < records_.size(); ++i)
+        if (records_[i].has_pose) pool.push_back({0, &records_[i]});
+      for (size_t i = 0; i < prior_records_.size(); ++i)
+        if (prior_records_[i].has_pose) pool.push_back({prior_session_[i], &prior_records_[i]});
+      MatchAndVerifyPool(query, pool, &result);
+    }
+    result.timings.total_ms = total.ElapsedMs();
+    return result;
+  }
 
   if ((index + 1) % static_cast<size_t>(options_.check_every) != 0) {
     result.status = LoopStatus::kSkipped;
@@ -176,11 +209,222 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     }
     candidates.push_back(id);
   }
+  if (options_.retrieval == CandidateRetrieval::kAnn)
+    candidates = RetrieveByVotes(query, index, candidates);  // index insert + vote query
   result.timings.search_ms = stage.ElapsedMs();
 
   SearchAndVerify(query, std::move(candidates), &result);
+  if (result.detected()) {
+    SetWorldFromQuery(records_[index_of_.at(result.match_id)], &result);
+  } else if (options_.search_prior_sessions && !prior_records_.empty()) {
+    // Earlier sessions, by appearance only (their world frame is not ours).
+    std::vector<PoolEntry> pool;
+    pool.reserve(prior_records_.size());
+    for (size_t i = 0; i < prior_records_.size(); ++i)
+      pool.push_back({prior_session_[i], &prior_records_[i]});
+    LoopResult prior;
+    prior.query_id = query.id;
+    MatchAndVerifyPool(query, pool, &prior);
+    if (prior.detected()) {
+      prior.timings.extract_ms = result.timings.extract_ms;
+      prior.timings.search_ms = result.timings.search_ms;
+      prior.timings.match_ms += result.timings.match_ms;
+      prior.timings.verify_ms += result.timings.verify_ms;
+      result = prior;
+    } else {
+      result.timings.match_ms += prior.timings.match_ms;
+      result.timings.verify_ms += prior.timings.verify_ms;
+    }
+  }
+  result.relocalization = !query.has_pose;
   result.timings.total_ms = total.ElapsedMs();
   return result;
+}
+
+void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+  SL_CHECK_MSG(session > 0, "prior session id must be > 0 (0 is the current session), got {}",
+               session);
+  SL_CHECK_MSG(!prior_index_.count(session), "prior session {} was already added", session);
+  std::unordered_map<int64_t, size_t> index;
+  for (size_t i = 0; i < records.size(); ++i) {
+    const KeyframeRecord& r = records[i];
+    SL_CHECK_MSG(index.emplace(r.id, prior_records_.size() + i).second,
+                 "prior session {}: duplicate keyframe id {}", session, r.id);
+    SL_CHECK_MSG(std::isfinite(r.focal_px) && r.focal_px > 0,
+                 "prior session {} keyframe {}: focal_px must be > 0, got {}", session, r.id,
+                 r.focal_px);
+    SL_CHECK_MSG(r.keypoints.size() == r.descriptors.size() &&
+                     (r.depths.empty() || r.depths.size() == r.descriptors.size()),
+                 "prior session {} keyframe {}: {} descriptors, {} keypoints, {} depths", session,
+                 r.id, r.descriptors.size(), r.keypoints.size(), r.depths.size());
+    if (r.has_pose) {
+      const Sim3d& pose = r.world_from_cam;
+      SL_CHECK_MSG(pose.translation.allFinite() && pose.rotation.coeffs().allFinite() &&
+                       std::isfinite(pose.scale) && pose.scale > 0 &&
+                       std::abs(pose.rotation.norm() - 1.0) < 1e-6,
+                   "prior session {} keyframe {}: pose is not finite / not a unit quaternion",
+                   session, r.id);
+    }
+  }
+  prior_index_[session] = std::move(index);
+  prior_records_.reserve(prior_records_.size() + records.size());
+  for (auto& r : records) {
+    prior_records_.push_back(std::move(r));
+    prior_session_.push_back(session);
+  }
+}
+
+const KeyframeRecord& LoopDetector::prior_record(int64_t session, int64_t id) const {
+  auto s = prior_index_.find(session);
+  SL_CHECK_MSG(s != prior_index_.end(), "unknown prior session {}", session);
+  auto it = s->second.find(id);
+  SL_CHECK_MSG(it != s->second.end(), "unknown keyframe id {} in prior session {}", id, session);
+  return prior_records_[it->second];
+}
+
+void LoopDetector::ValidateImageInput(const KeyframeInput& input) const {
+  input.intrinsics.Check();
+  SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
+  SL_CHECK_MSG(input.image.type() == CV_8UC1,
+               "keyframe {}: image must be 8-bit grayscale (CV_8UC1)", input.id);
+  SL_CHECK_MSG((input.intrinsics.width == 0 || input.image.cols == input.intrinsics.width) &&
+                   (input.intrinsics.height == 0 || input.image.rows == input.intrinsics.height),
+               "keyframe {}: image size {}x{} does not match the intrinsics {}x{}", input.id,
+               input.image.cols, input.image.rows, input.intrinsics.width, input.intrinsics.height);
+  SL_CHECK_MSG(
+      input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
+      "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),
+      input.mapped_pixels.size());
+}
+
+LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
+  Timer total;
+  ValidateImageInput(input);
+  LoopResult result;
+  result.query_id = input.id;
+  result.relocalization = true;
+  Timer stage;
+  KeyframeRecord rec;
+  rec.id = input.id;
+  rec.timestamp = input.timestamp;
+  FeatureInput fin;
+  fin.image = &input.image;
+  fin.intrinsics = &input.intrinsics;
+  if (!input.high_gradient_mask.empty()) fin.mask = &input.high_gradient_mask;
+  if (!input.mapped_pixels.empty()) fin.mapped_pixels = &input.mapped_pixels;
+  if (!input.mapped_depths.empty()) fin.mapped_depths = &input.mapped_depths;
+  ExtractInformativeFeatures(fin, options_.features, &rec);
+  result.timings.extract_ms = stage.ElapsedMs();
+  if (rec.size() < 5) {
+    result.status = LoopStatus::kNoFeatures;
+  } else {
+    std::vector<PoolEntry> pool;
+    for (const auto& r : records_)
+      if (r.has_pose) pool.push_back({0, &r});
+    for (size_t i = 0; i < prior_records_.size(); ++i)
+      if (prior_records_[i].has_pose) pool.push_back({prior_session_[i], &prior_records_[i]});
+    MatchAndVerifyPool(rec, pool, &result);
+  }
+  result.timings.total_ms = total.ElapsedMs();
+  return result;
+}
+
+void LoopDetector::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const {
+  if (result->detected() && match.has_pose && result->pose_kind != RelativePoseKind::kNone)
+  {
+    result->world_from_query = match.world_from_cam * result->match_from_query;
+    result->has_world_from_query = true;
+  }
+}
+
+void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
+                                      const std::vector<PoolEntry>& pool,
+                                      LoopResult* result) const {
+  result->candidates = static_cast<int>(pool.size());
+  if (pool.empty()) {
+    result->status = LoopStatus::kNoCandidates;
+    return;
+  }
+  Timer stage;
+  struct Ranked {
+    size_t entry;
+    std::vector<DescriptorMatch> matches;
+    double score;
+  };
+  std::vector<Ranked> ranked;
+  int best_count = 0;
+  size_t best_entry = 0;
+  for (size_t e = 0; e < pool.size(); ++e) {
+    auto m = MatchDescriptors(query.descriptors, pool[e].record->descriptors, options_.match);
+    const int n = static_cast<int>(m.size());
+    if (n > best_count) {
+      best_count = n;
+      best_entry = e;
+    }
+    if (n < options_.min_matches) continue;
+    const double s = MatchScore(m, options_.match.max_distance);
+    ranked.push_back({e, std::move(m), s});
+  }
+  std::sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
+    if (a.matches.size() != b.matches.size()) return a.matches.size() > b.matches.size();
+    if (a.score != b.score) return a.score > b.score;
+    return a.entry < b.entry;
+  });
+  result->timings.match_ms += stage.ElapsedMs();
+  if (ranked.empty()) {
+    result->status = LoopStatus::kTooFewMatches;
+    result->match_id = pool[best_entry].record->id;
+    result->match_session = pool[best_entry].session;
+    result->matches = best_count;
+    return;
+  }
+  stage.Restart();
+  result->status = LoopStatus::kTooFewInliers;
+  bool have_best = false;
+  const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
+  for (int r = 0; r < n_verify; ++r) {
+    const Ranked& cand = ranked[r];
+    const PoolEntry& entry = pool[cand.entry];
+    VerificationResult v = VerifyPair(query, *entry.record, cand.matches, verify_);
+    if (have_best && !v.success && v.inliers <= result->inliers) continue;
+    result->match_id = entry.record->id;
+    result->match_session = entry.session;
+    result->matches = static_cast<int>(cand.matches.size());
+    result->inliers = v.inliers;
+    result->score = static_cast<double>(v.inliers) / options_.features.max_features;
+    result->method = v.method;
+    result->pose_kind = v.pose_kind;
+    result->match_from_query = v.match_from_query;
+    result->status = v.success ? LoopStatus::kDetected : LoopStatus::kTooFewInliers;
+    have_best = true;
+    if (v.success) {
+      SetWorldFromQuery(*entry.record, result);
+      break;
+    }
+  }
+  result->timings.verify_ms += stage.ElapsedMs();
+}
+
+std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query,
+                                                   size_t query_index,
+                                                   const std::vector<int64_t>& allowed) {
+  // Keyframes the search area may return (index < query index - exclude_recent) enter the index;
+  // the recent ones stay out, else they would absorb every query descriptor's nearest neighbours.
+  const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+  const size_t eligible = query_index > exclude ? query_index - exclude : 0;
+  for (; ann_indexed_ < eligible; ++ann_indexed_)
+    ann_->Add(static_cast<int64_t>(ann_indexed_), records_[ann_indexed_].descriptors);
+  if (allowed.empty()) return {};
+  std::vector<int64_t> allowed_sorted = allowed;
+  std::sort(allowed_sorted.begin(), allowed_sorted.end());
+  std::vector<int64_t> out;
+  for (const KeyframeVotes& v : ann_->Query(query.descriptors)) {
+    const int64_t id = records_[static_cast<size_t>(v.keyframe_id)].id;
+    if (!std::binary_search(allowed_sorted.begin(), allowed_sorted.end(), id)) continue;
+    out.push_back(id);
+    if (static_cast<int>(out.size()) >= options_.ann.max_candidates) break;
+  }
+  return out;
 }
 
 LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,

@@ -3,6 +3,7 @@
 #include <sqlite3.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 
 #include "sparseloop/core/check.h"
@@ -105,7 +106,8 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
         "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
         " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
         " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
-        " depths BLOB NOT NULL, PRIMARY KEY(session, id));"
+        " depths BLOB NOT NULL, focal_px REAL NOT NULL DEFAULT 0,"
+        " has_pose INTEGER NOT NULL DEFAULT 1, PRIMARY KEY(session, id));"
         "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
         " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
         " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);");
@@ -118,11 +120,21 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
         "{}: map schema version {} is newer than this sparseloop supports ({}); upgrade "
         "sparseloop",
         path.string(), version, kSchemaVersion));
-  } else if (version < kSchemaVersion) {
-    // No older schema has been released yet; a migration step per version goes here.
+  } else if (version < 1) {
     throw MapDatabaseError(fmt::format("{}: map schema version {} has no migration to {}",
                                        path.string(), version, kSchemaVersion));
   } else {
+    if (version == 1) {
+      // 1 -> 2: per-keyframe focal length (verification thresholds) and pose flag
+      // (relocalisation). Old keyframes: focal unknown (0), pose present.
+      map->Exec(
+          "BEGIN IMMEDIATE;"
+          "ALTER TABLE keyframes ADD COLUMN focal_px REAL NOT NULL DEFAULT 0;"
+          "ALTER TABLE keyframes ADD COLUMN has_pose INTEGER NOT NULL DEFAULT 1;"
+          "PRAGMA user_version=2;"
+          "COMMIT;");
+      Logger().info("{}: map schema migrated from version 1 to 2", path.string());
+    }
     map->Exec("PRAGMA journal_mode=WAL");
     const int ok =
         QueryInt(db, "SELECT count(*) FROM pragma_quick_check WHERE quick_check='ok'", path);
@@ -206,10 +218,12 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   SL_CHECK_MSG(kf.depths.empty() || kf.depths.size() == static_cast<size_t>(kf.num_features),
                "keyframe {}: {} depths for {} features", kf.id, kf.depths.size(), kf.num_features);
   SL_CHECK_MSG(std::isfinite(kf.timestamp), "keyframe {}: non-finite timestamp", kf.id);
+  SL_CHECK_MSG(std::isfinite(kf.focal_px) && kf.focal_px >= 0,
+               "keyframe {}: focal_px must be finite and >= 0, got {}", kf.id, kf.focal_px);
   BeginIfNeeded();
   Statement st(db_,
                "INSERT INTO keyframes(session, id, timestamp, pose, num_features, descriptors,"
-               " keypoints, depths) VALUES(?,?,?,?,?,?,?,?)",
+               " keypoints, depths, focal_px, has_pose) VALUES(?,?,?,?,?,?,?,?,?,?)",
                path_);
   const auto pose = SimToBlob(kf.raw_world_from_cam);
   sqlite3_bind_int64(st.get(), 1, kf.session);
@@ -220,6 +234,8 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   st.BindBlob(6, kf.descriptors.data(), kf.descriptors.size());
   st.BindBlob(7, kf.keypoints.data(), kf.keypoints.size() * sizeof(float));
   st.BindBlob(8, kf.depths.data(), kf.depths.size() * sizeof(float));
+  sqlite3_bind_double(st.get(), 9, kf.focal_px);
+  sqlite3_bind_int(st.get(), 10, kf.has_pose ? 1 : 0);
   const int rc = st.Step();
   if (rc == SQLITE_CONSTRAINT) {
     // Statement-level rollback: earlier keyframes in this transaction are kept.
@@ -269,9 +285,12 @@ std::vector<StoredKeyframe> ReadKeyframes(sqlite3* db, Statement& st,
     kf.descriptors = ColumnArray<uint8_t>(s, 5);
     kf.keypoints = ColumnArray<float>(s, 6);
     kf.depths = ColumnArray<float>(s, 7);
+    kf.focal_px = static_cast<float>(sqlite3_column_double(s, 8));
+    kf.has_pose = sqlite3_column_int(s, 9) != 0;
     const size_t n = static_cast<size_t>(std::max(kf.num_features, 0));
     if (kf.num_features < 0 || kf.descriptors.size() != n * 32 || kf.keypoints.size() != n * 2 ||
-        (!kf.depths.empty() && kf.depths.size() != n)) {
+        (!kf.depths.empty() && kf.depths.size() != n) || !std::isfinite(kf.focal_px) ||
+        kf.focal_px < 0) {
       throw MapDatabaseError(fmt::format("{}: corrupt keyframe record (session {}, id {})",
                                          path.string(), kf.session, kf.id));
     }
@@ -283,8 +302,8 @@ std::vector<StoredKeyframe> ReadKeyframes(sqlite3* db, Statement& st,
   return out;
 }
 constexpr const char* kSelectKeyframes =
-    "SELECT session, id, timestamp, pose, num_features, descriptors, keypoints, depths"
-    " FROM keyframes";
+    "SELECT session, id, timestamp, pose, num_features, descriptors, keypoints, depths,"
+    " focal_px, has_pose FROM keyframes";
 }  // namespace
 
 std::vector<StoredKeyframe> MapDatabase::LoadKeyframes(int64_t session) const {

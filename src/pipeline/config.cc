@@ -203,6 +203,17 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     d->Get("consistency_max_deg", &o.consistency_max_deg);
     d->Get("temporal_check", &o.temporal_check);
     d->Get("temporal_window", &o.temporal_window);
+    d->GetEnum("retrieval", &o.retrieval, ParseCandidateRetrieval, "one of brute_force|ann");
+    if (auto a = d->Object("ann")) {
+      a->Get("hnsw_m", &o.ann.hnsw_m);
+      a->Get("ef_construction", &o.ann.ef_construction);
+      a->Get("ef_search", &o.ann.ef_search);
+      a->Get("neighbors", &o.ann.neighbors);
+      a->Get("max_distance", &o.ann.max_distance);
+      a->Get("max_candidates", &o.ann.max_candidates);
+      a->Get("num_threads", &o.ann.num_threads);
+      a->Finish();
+    }
     d->Get("seed", &o.seed);
     d->Finish();
   }
@@ -299,6 +310,15 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"consistency_max_deg", d.consistency_max_deg},
             {"temporal_check", d.temporal_check},
             {"temporal_window", d.temporal_window},
+            {"retrieval", ToString(d.retrieval)},
+            {"ann",
+             {{"hnsw_m", d.ann.hnsw_m},
+              {"ef_construction", d.ann.ef_construction},
+              {"ef_search", d.ann.ef_search},
+              {"neighbors", d.ann.neighbors},
+              {"max_distance", d.ann.max_distance},
+              {"max_candidates", d.ann.max_candidates},
+              {"num_threads", d.ann.num_threads}}},
             {"seed", d.seed}}},
           {"optimizer",
            {{"max_iterations", options.optimizer.max_iterations},

@@ -11,6 +11,7 @@
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/map/map_database.h"
+#include "sparseloop/pipeline/map_records.h"
 #include "sparseloop/posegraph/interpolation.h"
 
 namespace sparseloop {
@@ -172,24 +173,6 @@ LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Tra
 
 namespace {
 
-StoredKeyframe ToStored(const KeyframeRecord& r, int64_t session) {
-  StoredKeyframe s;
-  s.session = session;
-  s.id = r.id;
-  s.timestamp = r.timestamp;
-  s.raw_world_from_cam = r.world_from_cam;
-  s.num_features = static_cast<int>(r.size());
-  s.descriptors.resize(r.size() * 32);
-  if (!r.descriptors.empty())
-    std::memcpy(s.descriptors.data(), r.descriptors.data(), r.size() * 32);
-  for (const auto& k : r.keypoints) {
-    s.keypoints.push_back(k.x);
-    s.keypoints.push_back(k.y);
-  }
-  s.depths = r.depths;
-  return s;
-}
-
 double LocalStep(const Trajectory& raw, size_t i) {
   const size_t a = i > 0 ? i - 1 : 0;
   const size_t b = i > 0 ? i : std::min<size_t>(1, raw.poses.size() - 1);
@@ -213,6 +196,10 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
   int64_t session = 0;
   if (!options.map_path.empty()) {
     map = MapDatabase::Open(options.map_path);
+    if (options.load_map_sessions) {
+      const float focal = static_cast<float>(0.5 * (dataset.intrinsics.fx + dataset.intrinsics.fy));
+      LoadPriorSessions(*map, focal, &detector);
+    }
     session = map->BeginSession(options.session_label);
   }
 
@@ -253,8 +240,8 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
     result.keyframe_frames.push_back(frame.index);
     const KeyframeRecord& record = detector.record(frame.index);
     bytes += record.Bytes();
-    if (map) map->PutKeyframe(ToStored(record, session));
-    if (r.detected()) result.loops.push_back(r);
+    if (map) map->PutKeyframe(ToStoredKeyframe(record, session));
+    if (r.detected()) (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
     result.frame_results.push_back(std::move(r));
     if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
   }
@@ -296,6 +283,10 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
       const LoopResult& l = result.loops[k];
       map->PutLoop({session, l.query_id, session, l.match_id, l.inliers, l.score,
                     l.match_from_query, result.loop_accepted[k]});
+    }
+    for (const LoopResult& l : result.cross_session_loops) {
+      map->PutLoop({session, l.query_id, l.match_session, l.match_id, l.inliers, l.score,
+                    l.match_from_query, false});
     }
     map->Flush();
   }

@@ -32,7 +32,7 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   std::istringstream lines(csv);
   std::string header;
   std::getline(lines, header);
-  EXPECT_EQ(header, "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale");
+  EXPECT_EQ(header, "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale,match_session");
   int loops = 0;
   bool ring = false;
   for (std::string line; std::getline(lines, line);) {

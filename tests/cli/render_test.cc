@@ -57,6 +57,39 @@ TEST(RenderCli, SameSeedSameBytes) {
   }
 }
 
+// --poses-only writes the same raw trajectory as a full render (same seed), --drift scales it:
+// 0 gives raw == GT, larger values drift further from GT.
+TEST(RenderCli, PosesOnlyMatchesFullRenderAndDriftScales) {
+  const auto full = OutDir("full");
+  ASSERT_EQ(RunCli({"render", "--world", "aerial", "--frames", "40", "--seed", "5", "--no-mapped",
+                    "--out", full.string()})
+                .exit_code,
+            0);
+  auto end_error = [](const fs::path& dir) {
+    const Trajectory gt = ReadTrajectory(dir / "poses_gt.txt");
+    const Trajectory raw = ReadTrajectory(dir / "poses_raw.txt");
+    return (gt.poses.back().world_from_cam.translation -
+            raw.poses.back().world_from_cam.translation)
+        .norm();
+  };
+  std::vector<double> errors;
+  for (const char* drift : {"1", "0", "3"}) {
+    const auto out = OutDir(std::string("drift") + drift);
+    const CliResult r = RunCli({"render", "--world", "aerial", "--frames", "40", "--seed", "5",
+                                "--poses-only", "--drift", drift, "--out", out.string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_FALSE(fs::exists(out / "image_0"));
+    errors.push_back(end_error(out));
+  }
+  EXPECT_DOUBLE_EQ(errors[0], end_error(full));  // same drift as the full render
+  EXPECT_LT(errors[1], 1e-6);                    // --drift 0: raw == GT
+  EXPECT_GT(errors[2], errors[0]);               // more drift, farther from GT
+  EXPECT_EQ(RunCli({"render", "--world", "aerial", "--frames", "4", "--poses-only", "--drift", "-1",
+                    "--out", (TempDir() / "x").string()})
+                .exit_code,
+            2);
+}
+
 TEST(RenderCli, BadArgumentsExit2) {
   const auto out = TempDir() / "x";
   EXPECT_EQ(RunCli({"render", "--world", "moon", "--out", out.string()}).exit_code, 2);

@@ -1,7 +1,10 @@
+#include <cmath>
+#include <cstdio>
 #include <random>
 #include <set>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "sparseloop/features/informative_features.h"
@@ -184,6 +187,111 @@ TEST(Features, OptionsCheck) {
   in.intrinsics = &cam;
   KeyframeRecord r;
   EXPECT_THROW(ExtractInformativeFeatures(in, FeatureOptions{}, &r), std::invalid_argument);
+}
+
+// ---- kFast ORB backend vs OpenCV's masked cv::ORB (docs/DETECTOR.md, Speed) ----
+
+cv::Mat KittiFrame(int index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d.png", index);
+  return cv::imread((test::DataDir() / "kitti07_first160" / "image_0" / name).string(),
+                    cv::IMREAD_GRAYSCALE);
+}
+
+CameraIntrinsics KittiCamera() {
+  CameraIntrinsics k;
+  k.fx = k.fy = 707.0912;
+  k.cx = 601.8873;
+  k.cy = 183.1104;
+  k.width = 1226;
+  k.height = 370;
+  return k;
+}
+
+// Number of kept features that differ (descriptor, position, angle or octave), or -1 when the
+// counts differ.
+int RecordDifferences(const KeyframeRecord& a, const KeyframeRecord& b) {
+  if (a.size() != b.size()) return -1;
+  int d = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const auto& p = a.keypoints[i];
+    const auto& q = b.keypoints[i];
+    d += a.descriptors[i] != b.descriptors[i] || p.x != q.x || p.y != q.y || p.angle != q.angle ||
+         p.octave != q.octave;
+  }
+  return d;
+}
+
+TEST(Features, FastOrbMatchesOpenCvOrbOnKitti) {
+  SL_REQUIRE_DATA("kitti07_first160");
+  const CameraIntrinsics cam = KittiCamera();
+  // Measured on all 160 frames x 3 rankings (144,000 features): 0 differences. Frames here cover
+  // the start, middle and end of the sequence; every ranking, with and without the area mask.
+  for (int index : {0, 55, 159}) {
+    const cv::Mat img = KittiFrame(index);
+    ASSERT_FALSE(img.empty());
+    for (FeatureRanking ranking :
+         {FeatureRanking::kResponse, FeatureRanking::kPopcount, FeatureRanking::kGridResponse}) {
+      for (bool area : {true, false}) {
+        FeatureInput in;
+        in.image = &img;
+        in.intrinsics = &cam;
+        FeatureOptions o;
+        o.ranking = ranking;
+        o.use_gradient_mask = area;
+        o.orb_backend = OrbBackend::kOpenCv;
+        KeyframeRecord reference, fast;
+        ExtractInformativeFeatures(in, o, &reference);
+        o.orb_backend = OrbBackend::kFast;
+        ExtractInformativeFeatures(in, o, &fast);
+        ASSERT_EQ(reference.size(), 300u);
+        EXPECT_EQ(RecordDifferences(reference, fast), 0)
+            << "frame " << index << " ranking " << ToString(ranking) << " area " << area;
+      }
+    }
+  }
+}
+
+TEST(Features, FastOrbKeepsOnlyKeypointsInsideTheMask) {
+  const CameraIntrinsics cam = SmallCamera();
+  for (uint64_t seed : {4, 6}) {
+    const cv::Mat img = TexturedImage(seed);
+    // An irregular area: left half plus a disc on the right.
+    cv::Mat mask(img.size(), CV_8UC1, cv::Scalar(0));
+    mask(cv::Rect(0, 0, 160, 240)).setTo(255);
+    cv::circle(mask, cv::Point(250, 120), 45, cv::Scalar(255), cv::FILLED);
+    FeatureInput in;
+    in.image = &img;
+    in.intrinsics = &cam;
+    in.mask = &mask;
+    FeatureOptions o;
+    o.max_features = 1000;  // keep every candidate
+    o.orb_backend = OrbBackend::kFast;
+    KeyframeRecord fast, reference;
+    ExtractInformativeFeatures(in, o, &fast);
+    ASSERT_GT(fast.size(), 20u);
+    for (const auto& k : fast.keypoints) {
+      // Back to pixels (no distortion). A level-L keypoint is inside the level's mask, i.e. its
+      // full-resolution position is inside the area up to the level's resampling (< scale px).
+      const double u = k.x * cam.fx + cam.cx, v = k.y * cam.fy + cam.cy;
+      const int r = k.octave == 0 ? 0 : static_cast<int>(std::ceil(std::pow(1.2, k.octave)));
+      const cv::Rect near =
+          cv::Rect(int(std::lround(u)) - r, int(std::lround(v)) - r, 2 * r + 1, 2 * r + 1) &
+          cv::Rect(0, 0, mask.cols, mask.rows);
+      EXPECT_GT(cv::countNonZero(mask(near)), 0) << "keypoint at " << u << ", " << v;
+    }
+    o.orb_backend = OrbBackend::kOpenCv;
+    ExtractInformativeFeatures(in, o, &reference);
+    EXPECT_EQ(RecordDifferences(reference, fast), 0) << "seed " << seed;
+  }
+}
+
+TEST(Features, OrbBackendNames) {
+  EXPECT_EQ(ParseOrbBackend("fast"), OrbBackend::kFast);
+  EXPECT_EQ(ParseOrbBackend("opencv"), OrbBackend::kOpenCv);
+  EXPECT_STREQ(ToString(OrbBackend::kFast), "fast");
+  EXPECT_THROW(ParseOrbBackend("sift"), std::invalid_argument);
+  EXPECT_EQ(FeatureOptions{}.orb_backend, OrbBackend::kFast);
 }
 
 }  // namespace

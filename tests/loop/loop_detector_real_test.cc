@@ -60,11 +60,18 @@ TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
   std::printf("castle 29->%lld: inliers %d, rotation error %.2f deg, direction error %.2f deg\n",
               (long long)loop.match_id, loop.inliers, rot_err, dir_err);
   EXPECT_LT(rot_err, 2.0);
+  // Levenberg-Marquardt + local optimisation of the essential matrix: 0.46 deg rotation error and
+  // 18.5 deg direction error (before: 1.94 / 41 deg with the undamped Gauss-Newton refinement).
+  // 18.5 deg is the optimum of these inliers: LM started AT the GT pose converges to it too.
+  EXPECT_LT(rot_err, 1.0);
+  EXPECT_LT(dir_err, 25.0);
 }
 
-// KNOWN GAP (docs/DETECTOR.md): the translation direction of the 29 -> 1 loop is off by ~40 deg
-// (0.8 m baseline against a facade 10-20 m away: the direction is poorly conditioned from ~50
-// essential inliers). Run with --gtest_also_run_disabled_tests.
+// KNOWN GAP (docs/DETECTOR.md): the translation direction of the 29 -> 1 loop is 18.5 deg off.
+// Not an estimator bug any more: the Huber-Sampson optimum of the 67 GT-consistent matches at
+// K = 300 is itself 18 deg from the GT (0.57 vs 0.61 px rms; at K = 1000, 217 inliers, 6 deg):
+// a 0.8 m baseline against a mostly planar facade 10-20 m away. Run with
+// --gtest_also_run_disabled_tests.
 TEST(LoopDetectorReal, DISABLED_CastleTranslationDirectionWithin5Deg) {
   SL_REQUIRE_DATA("castle_p30_768");
   const CastleRun& run = Castle();
@@ -211,8 +218,12 @@ TEST(LoopDetectorReal, EurocPair23PassesGeometricVerification) {
   EXPECT_GE(r.result.inliers, LoopDetector::Options{}.EffectiveMinInliers());
 }
 
-// KNOWN GAP (docs/DETECTOR.md): on pair (2,3) the essential-matrix rotation is off by ~24 deg
-// from the GT, so the pose-prior check rejects it. Run with --gtest_also_run_disabled_tests.
+// KNOWN GAP (docs/DETECTOR.md): on pair (2,3) the essential-matrix rotation is off by ~21 deg
+// from the GT (39 of 77 matches inliers at K = 300; 5.5 deg with 153 inliers at K = 1000), so the
+// pose-prior check rejects it. The transcribed GT itself does not fit the images to better than
+// a few degrees: under the GT relative pose the matches' median Sampson error is 8 px on pair
+// (0,1), which verifies with 72 of 81 matches within 2 px. Run with
+// --gtest_also_run_disabled_tests.
 TEST(LoopDetectorReal, DISABLED_EurocPair23Detected) {
   SL_REQUIRE_DATA("euroc_loop_pairs");
   const EurocPairResult r = RunEurocPair(1);

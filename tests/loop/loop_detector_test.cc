@@ -72,8 +72,18 @@ TEST(LoopDetector, OptionsCheck) {
 }
 
 TEST(LoopDetector, NoPoseNeedsGlobalSearchAndIdsAreUnique) {
+  // Under a geometric strategy a pose-less keyframe is "tracking lost": it is relocalised
+  // (nothing stored with a pose yet, so no candidate) ...
   LoopDetector paper(LoopDetector::Options{});  // default strategy: paper
-  EXPECT_THROW(paper.Process(Input(0, Textured(1))), std::invalid_argument);
+  const LoopResult lost = paper.Process(Input(0, Textured(1)));
+  EXPECT_TRUE(lost.relocalization);
+  EXPECT_FALSE(lost.detected());
+  EXPECT_FALSE(lost.has_world_from_query);
+  // ... and with relocalisation switched off it is a caller error.
+  LoopDetector::Options strict;
+  strict.relocalize_without_pose = false;
+  LoopDetector no_reloc(strict);
+  EXPECT_THROW(no_reloc.Process(Input(0, Textured(1))), std::invalid_argument);
   LoopDetector global(GlobalNoExclusion());
   EXPECT_EQ(global.Process(Input(0, Textured(1))).status, LoopStatus::kNoCandidates);
   EXPECT_THROW(global.Process(Input(0, Textured(1))), std::invalid_argument);

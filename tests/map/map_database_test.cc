@@ -7,6 +7,8 @@
 
 #include <fstream>
 
+#include <fmt/format.h>
+
 #include <gtest/gtest.h>
 
 #include "test_util.h"
@@ -158,6 +160,83 @@ TEST(MapDatabase, NewerSchemaIsRefused) {
   } catch (const MapDatabaseError& e) {
     EXPECT_NE(std::string(e.what()).find("schema version 99"), std::string::npos) << e.what();
   }
+}
+
+TEST(MapDatabase, FocalAndPoseFlagRoundTrip) {
+  const auto path = test::TempDir() / "map.db";
+  StoredKeyframe a = MakeKeyframe(1, 1, 3, false);
+  a.focal_px = 512.5f;
+  StoredKeyframe b = MakeKeyframe(1, 2, 3, true);
+  b.has_pose = false;
+  b.raw_world_from_cam = Sim3d();
+  {
+    auto map = MapDatabase::Open(path);
+    map->BeginSession("s");
+    map->PutKeyframe(a);
+    map->PutKeyframe(b);
+    StoredKeyframe bad = MakeKeyframe(1, 3, 3, false);
+    bad.focal_px = -1.0f;
+    EXPECT_THROW(map->PutKeyframe(bad), std::invalid_argument);
+  }
+  const auto back = MapDatabase::Open(path)->LoadKeyframes(1);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].focal_px, 512.5f);
+  EXPECT_TRUE(back[0].has_pose);
+  EXPECT_EQ(back[1].focal_px, 0.0f);
+  EXPECT_FALSE(back[1].has_pose);
+}
+
+// A schema-1 file (no focal_px / has_pose columns) is migrated in place on open; its keyframes
+// read back with focal 0 (unknown) and a pose, and the file reports schema 2 afterwards.
+TEST(MapDatabase, SchemaOneIsMigratedToTwo) {
+  const auto path = test::TempDir() / "v1.db";
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  const std::string v1 = fmt::format(
+      "PRAGMA application_id={};PRAGMA user_version=1;"
+      "CREATE TABLE sessions(id INTEGER PRIMARY KEY, created_unix REAL NOT NULL, label TEXT);"
+      "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
+      " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
+      " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
+      " depths BLOB NOT NULL, PRIMARY KEY(session, id));"
+      "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
+      " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
+      " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);"
+      "INSERT INTO sessions VALUES(1, 0, 'old');",
+      MapDatabase::kApplicationId);
+  ASSERT_EQ(sqlite3_exec(db, v1.c_str(), nullptr, nullptr, nullptr), SQLITE_OK);
+  const StoredKeyframe kf = MakeKeyframe(1, 7, 2, false);
+  sqlite3_stmt* st = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO keyframes VALUES(1, 7, 0.7, ?, 2, ?, ?, ?)", -1,
+                               &st, nullptr),
+            SQLITE_OK);
+  const Vector8d pose = kf.raw_world_from_cam.ToVector();
+  sqlite3_bind_blob(st, 1, pose.data(), 64, SQLITE_TRANSIENT);
+  sqlite3_bind_blob(st, 2, kf.descriptors.data(), 64, SQLITE_TRANSIENT);
+  sqlite3_bind_blob(st, 3, kf.keypoints.data(), 16, SQLITE_TRANSIENT);
+  sqlite3_bind_blob(st, 4, "", 0, SQLITE_TRANSIENT);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_DONE);
+  sqlite3_finalize(st);
+  sqlite3_close(db);
+
+  {
+    auto map = MapDatabase::Open(path);
+    const auto back = map->LoadKeyframes(1);
+    ASSERT_EQ(back.size(), 1u);
+    EXPECT_EQ(back[0].descriptors, kf.descriptors);
+    EXPECT_EQ(back[0].focal_px, 0.0f);
+    EXPECT_TRUE(back[0].has_pose);
+    StoredKeyframe fresh = MakeKeyframe(map->BeginSession("new"), 1, 2, false);
+    fresh.focal_px = 300.0f;
+    map->PutKeyframe(fresh);
+  }
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &st, nullptr);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int(st, 0), 2);
+  sqlite3_finalize(st);
+  sqlite3_close(db);
+  EXPECT_EQ(MapDatabase::Open(path)->LoadKeyframes(2).at(0).focal_px, 300.0f);
 }
 
 // A writer process is killed with SIGKILL while it stores keyframes. The database must open

@@ -151,6 +151,23 @@ TEST(Verification, EssentialRecoversRelativePose) {
   EXPECT_EQ(again.match_from_query.rotation.coeffs(), v.match_from_query.rotation.coeffs());
 }
 
+TEST(Verification, LocalOptimizationOption) {
+  VerifyOptions o;
+  o.local_optimization_rounds = -1;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  // Without local optimisation the result is still a valid pose; with it (default) at least as
+  // many inliers and a pose at least as close to the truth on this noiseless scene.
+  const Scene s = MakeScene(26, 80, 20, false, false);
+  o.local_optimization_rounds = 0;
+  const auto plain = VerifyPair(s.query, s.match, s.matches, o);
+  const auto lo = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
+  ASSERT_TRUE(plain.success);
+  ASSERT_TRUE(lo.success);
+  EXPECT_GE(lo.inliers, plain.inliers);
+  EXPECT_LT(RotationAngle(lo.match_from_query.rotation, s.match_from_query.rotation),
+            0.2 * M_PI / 180);
+}
+
 TEST(Verification, RandomCorrespondencesFail) {
   Scene s = MakeScene(22, 60, 60, false, false);  // all outliers
   const auto v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});

@@ -16,6 +16,7 @@
 #include "sparseloop/features/informative_features.h"
 #include "sparseloop/matching/descriptor_matching.h"
 #include "sparseloop/matching/geometric_verification.h"
+#include "sparseloop/retrieval/binary_ann_index.h"
 #include "sparseloop/search/search_area.h"
 
 namespace sparseloop {
@@ -26,7 +27,9 @@ struct KeyframeInput {
   cv::Mat image;           // CV_8UC1 grayscale
   CameraIntrinsics intrinsics;
   // Raw vSLAM pose (any scale; SE(3) poses convert with Sim3d(rigid)). Absent: no geometric search
-  // area and no pose-prior check (only SearchStrategy::kGlobal is allowed).
+  // area and no pose-prior check. With SearchStrategy::kGlobal the keyframe is searched globally
+  // as usual; with another strategy it is treated as "tracking lost" and relocalised against every
+  // stored keyframe with a pose (Options::relocalize_without_pose; see LoopDetector::Relocalize).
   std::optional<Sim3d> world_from_cam;
   // Optional informative area: pixels the vSLAM mapped (feature-based SLAM) with optional depths
   // (same length, <= 0 unknown, in the pose's units), or a mask of its high-gradient pixels.
@@ -46,6 +49,17 @@ enum class LoopStatus {
   kRejectedByTemporal,     // verified, but not confirmed by the previous check keyframe
 };
 const char* ToString(LoopStatus status);
+
+// How the keyframes to match and verify are chosen among the search area's candidates.
+enum class CandidateRetrieval {
+  kBruteForce,  // Hamming-match the query's K descriptors against every candidate (the paper)
+  kAnn,  // one ANN index over all stored descriptors; each query descriptor votes for the
+         // keyframes of its nearest stored descriptors; the top-voted candidates are matched
+         // and verified (how vocabulary-free detectors scale; the `full-ann` baseline)
+};
+const char* ToString(CandidateRetrieval retrieval);
+// "brute_force" | "ann"; throws std::invalid_argument otherwise.
+CandidateRetrieval ParseCandidateRetrieval(const std::string& name);
 
 struct StageTimings {
   double extract_ms = 0.0;  // feature extraction, ms
@@ -68,6 +82,18 @@ struct LoopResult {
   // p_in_match = match_from_query * p_in_query; see pose_kind for what is meaningful.
   Sim3d match_from_query;
   double rotation_error_vs_prior_deg = -1.0;  // -1 when no prior was available
+  // Session of match_id: 0 = this detector's own keyframes (the current session); > 0 = an
+  // earlier session loaded with AddPriorKeyframes (its id, e.g. the map's session id).
+  int64_t match_session = 0;
+  // Relocalisation / multi-session output (has_world_from_query), set when detected, the matched keyframe has a raw pose
+  // and pose_kind != kNone: the query camera in the MATCHED keyframe's world frame,
+  // world_from_matched * match_from_query. Units are those of the matched session. Scale caveat:
+  // with kSE3UnitTranslation (no depths, monocular) the query sits at unit distance (in the
+  // matched camera's frame, i.e. 1 / scale of world_from_matched in world units) along the
+  // verified direction: the orientation is right, the position is only a direction.
+  bool has_world_from_query = false;
+  Sim3d world_from_query;  // valid when has_world_from_query
+  bool relocalization = false;  // the query had no pose (or came through Relocalize())
   StageTimings timings;
   bool detected() const { return status == LoopStatus::kDetected; }
 };
@@ -100,6 +126,20 @@ class LoopDetector {
     // within temporal_window keyframes (by index) of this match.
     bool temporal_check = false;
     int temporal_window = 3;  // keyframes
+    // Candidate retrieval. kAnn: a keyframe enters the index once the search area may return it
+    // (older than search.exclude_recent), votes only count for keyframes the search area (and
+    // min_path_ratio) allow, and the ann.max_candidates top-voted go to matching + verification.
+    CandidateRetrieval retrieval = CandidateRetrieval::kBruteForce;
+    BinaryAnnOptions ann;  // index and voting parameters (used when retrieval == kAnn)
+    // Multi-session: on a check keyframe where the current session gives no loop, match the
+    // keyframes of earlier sessions (AddPriorKeyframes) by appearance: their world frame (origin,
+    // scale) differs, so no search area and no pose-prior rotation check apply; the same Hamming
+    // matching, ranking and geometric verification (same inlier threshold) do.
+    bool search_prior_sessions = true;
+    // A keyframe without a pose under a non-global search strategy is stored (no search-area
+    // entry) and relocalised against every stored keyframe with a pose, all sessions. false:
+    // such a keyframe is rejected with std::invalid_argument (the behaviour before relocalisation).
+    bool relocalize_without_pose = true;
     uint64_t seed = 42;       // copied into verify.seed
     void Check() const;
     // The inlier threshold actually applied: max(verify.min_inliers, ceil(fraction * K)).
@@ -121,14 +161,44 @@ class LoopDetector {
   const KeyframeRecord& record(int64_t id) const;
   // Sum of KeyframeRecord::Bytes() over the stored keyframes.
   size_t StoredBytes() const;
+  // Memory of the ANN retrieval index (0 unless retrieval == kAnn), bytes; not in StoredBytes().
+  size_t RetrievalIndexBytes() const { return ann_ ? ann_->Bytes() : 0; }
 
   // Query/match against stored records only (no extraction), for benchmarks and tests: matches
   // `query` against the given candidate ids and verifies the best.
   LoopResult MatchAgainst(const KeyframeRecord& query, const std::vector<int64_t>& candidate_ids);
 
+  // Multi-session: adds the keyframe records of an earlier session (`session` > 0, each session
+  // once; ids unique inside the session; focal_px > 0). Their poses are kept only to report
+  // LoopResult::world_from_query in that session's frame. Throws std::invalid_argument (nothing
+  // added) on a bad session id or record.
+  void AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records);
+  size_t num_prior_keyframes() const { return prior_records_.size(); }
+  const KeyframeRecord& prior_record(int64_t session, int64_t id) const;
+
+  // Relocalisation: extracts the input's features and matches them against every stored keyframe
+  // that has a pose (this session and all prior sessions), with geometric verification and no
+  // pose-prior check. Stores nothing; the input's id, timestamp and pose are not used. On success
+  // (status kDetected) world_from_query is the query pose in the matched keyframe's world frame.
+  LoopResult Relocalize(const KeyframeInput& input);
+
  private:
   void SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
                        LoopResult* result);
+  // retrieval == kAnn: indexes the keyframes that became eligible, then returns the
+  // ann.max_candidates top-voted ids among `allowed` (the filtered search-area candidates).
+  std::vector<int64_t> RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
+                                       const std::vector<int64_t>& allowed);
+  // Appearance-only matching + verification against `pool` (no pose-prior, temporal or search-area
+  // state is read or changed). Used for prior sessions and relocalisation.
+  struct PoolEntry {
+    int64_t session;  // 0 = current
+    const KeyframeRecord* record;
+  };
+  void MatchAndVerifyPool(const KeyframeRecord& query, const std::vector<PoolEntry>& pool,
+                          LoopResult* result) const;
+  void ValidateImageInput(const KeyframeInput& input) const;
+  void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
 
   Options options_;
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
@@ -140,6 +210,12 @@ class LoopDetector {
   std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
+  std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
+  size_t ann_indexed_ = 0;             // records_[0, ann_indexed_) are in ann_
+  // Earlier sessions (AddPriorKeyframes), searched by appearance only.
+  std::vector<KeyframeRecord> prior_records_;
+  std::vector<int64_t> prior_session_;  // session of each prior record
+  std::unordered_map<int64_t, std::unordered_map<int64_t, size_t>> prior_index_;  // session, id
 };
 
 }  // namespace sparseloop

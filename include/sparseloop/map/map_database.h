@@ -8,7 +8,8 @@
 //   keyframes(session INTEGER, id INTEGER, timestamp REAL, pose BLOB(8 doubles: qx qy qz qw tx ty
 //   tz s),
 //             num_features INTEGER, descriptors BLOB, keypoints BLOB, depths BLOB,
-//             PRIMARY KEY(session, id))
+//             focal_px REAL, has_pose INTEGER,            (schema 2; a v1 file is migrated
+//             PRIMARY KEY(session, id))                   on open with focal_px 0, has_pose 1)
 //   loops(session INTEGER, query INTEGER, match_session INTEGER, match INTEGER, inliers INTEGER,
 //         score REAL, relative BLOB(8 doubles), accepted INTEGER)
 #include <cstdint>
@@ -36,17 +37,21 @@ struct StoredKeyframe {
   int64_t session = 0;
   int64_t id = 0;
   double timestamp = 0.0;
-  Sim3d raw_world_from_cam;
+  Sim3d raw_world_from_cam;  // meaningful only when has_pose (identity otherwise)
+  bool has_pose = true;      // false for a keyframe given without a raw pose (tracking lost)
+  float focal_px = 0.0f;     // mean focal length of the camera, pixels (0 = unknown: v1 maps)
   int num_features = 0;
   std::vector<uint8_t> descriptors;  // num_features x 32 bytes (ORB)
-  std::vector<float> keypoints;      // num_features x 2 (x, y in pixels)
-  std::vector<float> depths;         // empty or num_features (raw vSLAM scale; <= 0 = unknown)
+  // num_features x 2: undistorted NORMALISED image coordinates x, y (as KeyframeRecord stores
+  // them: x = (u - cx) / fx), not pixels.
+  std::vector<float> keypoints;
+  std::vector<float> depths;  // empty or num_features (raw vSLAM scale; <= 0 = unknown)
 };
 
 struct StoredLoop {
   int64_t session = 0;
   int64_t query = 0;
-  int64_t match_session = 0;
+  int64_t match_session = 0;  // session of `match` (== session for a loop inside the session)
   int64_t match = 0;
   int inliers = 0;
   double score = 0.0;
@@ -66,11 +71,11 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;  // 2: keyframes.focal_px, keyframes.has_pose
   static constexpr int32_t kApplicationId = 0x534C4D50;  // "SLMP"
 
   // Opens or creates. Throws MapDatabaseError naming the file for a foreign, corrupt or
-  // newer-schema file.
+  // newer-schema file. A schema-1 file is migrated to schema 2 in place (one transaction).
   static std::unique_ptr<MapDatabase> Open(const std::filesystem::path& path,
                                            const MapDatabaseOptions& options = {});
   ~MapDatabase();

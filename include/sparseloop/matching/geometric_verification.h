@@ -28,6 +28,9 @@ struct VerifyOptions {
   double threshold_px = 2.0;      // RANSAC inlier threshold, pixels (divided by the focal length)
   double confidence = 0.999;      // RANSAC confidence, probability in (0, 1)
   int max_iterations = 1000;      // RANSAC iterations, count
+  // Essential matrix: rounds of local optimisation after RANSAC (refine R, t on the inliers by
+  // Levenberg-Marquardt, re-select inliers among all matches), count >= 0 (0 = RANSAC model only).
+  int local_optimization_rounds = 5;
   int min_inliers = 12;           // a pair with fewer geometric inliers fails, count
   double min_inlier_ratio = 0.0;  // inliers / matches below this fail, ratio in [0, 1]
   bool use_fundamental = false;   // intrinsics unknown: fundamental matrix instead of essential

@@ -36,6 +36,9 @@ struct PipelineOptions {
   bool skip_unreadable_frames = true;
   // Persistent map (optional): keyframe records and loops are stored there in a new session.
   std::filesystem::path map_path;
+  // With map_path: the sessions already in the map are loaded into the detector first, so this
+  // run also closes loops against them (PipelineResult::cross_session_loops).
+  bool load_map_sessions = true;
   std::string session_label = "run";
   void Check() const;
 };
@@ -51,6 +54,9 @@ struct PipelineResult {
   std::vector<LoopResult> frame_results;  // one per processed keyframe, in order
   std::vector<LoopResult> loops;          // the detected loops (before outlier rejection)
   std::vector<bool> loop_accepted;        // per entry of `loops`: kept by the pose graph
+  // Loops whose match is a keyframe of an earlier map session (LoopResult::match_session > 0).
+  // Not in the pose graph (their world frame differs); stored in the map with accepted = 0.
+  std::vector<LoopResult> cross_session_loops;
   std::vector<int64_t> keyframe_frames;   // dataset frame index of each processed keyframe
   size_t skipped_frames = 0;              // unreadable images (see skip_unreadable_frames)
   PoseGraphSummary optimizer;

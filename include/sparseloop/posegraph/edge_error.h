@@ -9,6 +9,8 @@
 // is identically zero (scales stay 1); for 2D graphs only (upsilon_x, upsilon_y, omega_z) carry
 // information.
 #include <ceres/autodiff_cost_function.h>
+#include <ceres/jet.h>
+#include <ceres/sized_cost_function.h>
 
 #include "sparseloop/core/sim3.h"
 #include "sparseloop/posegraph/sim3_jet.h"
@@ -48,6 +50,98 @@ class EdgeError {
 
  private:
   Sim3d b_from_a_measured_;
+  Matrix7d sqrt_information_;
+};
+
+// The same residual with analytic Jacobians, for Sim(3) vertices (Sim3Manifold) only.
+//
+// With E = Z^-1 * inv(A) * B and e = log(E), right perturbations A exp(da), B exp(db) give
+//   d e / d db = Jl(E)                    := d log(E exp(d)) / dd at d = 0
+//   d e / d da = -Jl(E) * Ad(inv(inv(A) B))   (exp(-d) inv(A) B = inv(A) B exp(-Ad(..) d))
+// Jl(E) is computed with 7-dimensional Jets over the small map at d = 0 (exact, no Jr^-1
+// approximation); autodiff through the whole residual needs 16-dimensional Jets through two
+// products, an inverse and the log. Ad is the Sim(3) adjoint, exp(Ad(T) x) = T exp(x) inv(T):
+//   [[s R, [t]x R, -t], [0, R, 0], [0, 0, 1]]   (Sophus' Sim3::Adj, same tangent order). Ceres wants Jacobians w.r.t. the 8 ambient
+// parameters and multiplies them by the manifold's PlusJacobian P (8x7); we return
+// J_tangent * P^+ with the left inverse P^+ of P = d(x exp(d))/dd at d = 0:
+//   rows upsilon: R^T / s on t;  rows omega: 2 [qw I + [qv]x ; -qv^T]^T on q;  row sigma: 1/s on s
+// so that J_ambient * P = J_tangent. Checked against EdgeError in pose_graph_test.cc.
+class Sim3EdgeCost : public ceres::SizedCostFunction<7, 8, 8> {
+ public:
+  Sim3EdgeCost(const Sim3d& a_from_b, const Matrix7d& sqrt_information)
+      : sqrt_information_(sqrt_information) {
+    const Sim3d inv = a_from_b.Inverse();
+    z_inv_.rotation = inv.rotation;
+    z_inv_.translation = inv.translation;
+    z_inv_.scale = inv.scale;
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    using Jet = ceres::Jet<double, 7>;
+    const jet::Sim3<double> a = jet::Sim3<double>::FromArray(parameters[0]);
+    const jet::Sim3<double> b = jet::Sim3<double>::FromArray(parameters[1]);
+    const jet::Sim3<double> a_inv_b = a.Inverse() * b;
+    const jet::Sim3<double> e = z_inv_ * a_inv_b;
+    Eigen::Map<Eigen::Matrix<double, 7, 1>> r(residuals);
+    r = sqrt_information_ * e.Log();
+    if (jacobians == nullptr) return true;
+    jet::Vector7<Jet> d;
+    for (int i = 0; i < 7; ++i) d[i] = Jet(0.0, i);
+    const jet::Vector7<Jet> log = (Cast(e) * jet::Sim3<Jet>::Exp(d)).Log();
+    Matrix7d j_log;
+    for (int row = 0; row < 7; ++row) j_log.row(row) = log[row].v.transpose();
+    const Matrix7d j_b = sqrt_information_ * j_log;
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 7, 8, Eigen::RowMajor>> j(jacobians[1]);
+      j = j_b * PlusJacobianLeftInverse(parameters[1]);
+    }
+    if (jacobians[0] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 7, 8, Eigen::RowMajor>> j(jacobians[0]);
+      j = -j_b * Adjoint(a_inv_b.Inverse()) * PlusJacobianLeftInverse(parameters[0]);
+    }
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Sim3d& a_from_b, const Matrix7d& sqrt_information) {
+    return new Sim3EdgeCost(a_from_b, sqrt_information);
+  }
+
+  static Matrix7d Adjoint(const jet::Sim3<double>& x) {
+    const Eigen::Matrix3d r = x.rotation.toRotationMatrix();
+    Matrix7d out = Matrix7d::Zero();
+    out.block<3, 3>(0, 0) = x.scale * r;
+    out.block<3, 3>(0, 3) = jet::Hat<double>(x.translation) * r;
+    out.block<3, 1>(0, 6) = -x.translation;
+    out.block<3, 3>(3, 3) = r;
+    out(6, 6) = 1.0;
+    return out;
+  }
+
+  // P^+ (7x8) with P^+ P = I for P = d(x exp(d))/dd at d = 0 (x with a unit quaternion).
+  static Eigen::Matrix<double, 7, 8> PlusJacobianLeftInverse(const double* x) {
+    const Eigen::Quaterniond q(x[3], x[0], x[1], x[2]);
+    const double s = x[7];
+    Eigen::Matrix<double, 7, 8> out = Eigen::Matrix<double, 7, 8>::Zero();
+    out.block<3, 3>(0, 4) = q.toRotationMatrix().transpose() / s;
+    Eigen::Matrix<double, 4, 3> m;  // d(q * [v, 1]) / dv, rows x y z w
+    m.topRows<3>() = q.w() * Eigen::Matrix3d::Identity() + jet::Hat<double>(q.vec());
+    m.row(3) = -q.vec().transpose();
+    out.block<3, 4>(3, 0) = 2.0 * m.transpose();  // P's omega block is m / 2
+    out(6, 7) = 1.0 / s;
+    return out;
+  }
+
+ private:
+  static jet::Sim3<ceres::Jet<double, 7>> Cast(const jet::Sim3<double>& x) {
+    jet::Sim3<ceres::Jet<double, 7>> out;
+    out.rotation = x.rotation.cast<ceres::Jet<double, 7>>();
+    out.translation = x.translation.cast<ceres::Jet<double, 7>>();
+    out.scale = ceres::Jet<double, 7>(x.scale);
+    return out;
+  }
+
+  jet::Sim3<double> z_inv_;
   Matrix7d sqrt_information_;
 };
 

@@ -1,0 +1,331 @@
+// Detector accuracy on the real data, as ONE JSON object on stdout (collected into
+// docs/BENCHMARKS.md by scripts/benchmark). Not a Google Benchmark: it measures accuracy, not time.
+//   build/bin/detector_accuracy [--data DIR] [--quick]
+// DIR defaults to $SPARSELOOP_DATA, else the configured SPARSELOOP_DATA_DIR (../shared/data).
+// Exit 0 on success, 2 when the data (or an argument) is missing. Runtime ~1-2 min on one core.
+//
+// What it prints (docs/DETECTOR.md explains every number):
+//   rtabmap[ranking][K]: detections, true positives, precision, recall, recall@100%P
+//     (rtabmap_corridor_loop, global search, no poses, guessed intrinsics, default options but K,
+//     ranking popcount / response / grid, K in {8,10,12,15,18,32,50,64,100,300});
+//   castle: the default detector over views 0001..0029 with GT poses: loops found, the 29 -> x
+//     loop's relative rotation error and translation direction error vs GT, degrees;
+//   castle_pairs[ranking][K]: descriptor matches and essential inliers (min_inliers 5) of the
+//     true loops 29-01, 29-02 and the false pairs 29-15, 20-05, K in {15, 50};
+//   euroc: both loop pairs, default options (global search): status, inliers, rotation error.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/matching/descriptor_matching.h"
+#include "sparseloop/matching/geometric_verification.h"
+
+namespace sparseloop {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+double Deg(double rad) { return rad * 180.0 / M_PI; }
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return Deg(std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)));
+}
+
+// ---- castle_p30_768 (Strecha format: K, 3 zeros, R = world_from_cam rotation, centre, w h).
+struct Frame {
+  cv::Mat image;
+  CameraIntrinsics intrinsics;
+  Rigid3d world_from_cam;
+};
+
+std::vector<Frame> LoadCastle(const fs::path& root) {
+  std::vector<Frame> frames;
+  for (int i = 1; i <= 29; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%04d.jpg", i);
+    std::ifstream in(root / "gt_dense_cameras" / (std::string(name) + ".camera"));
+    double v[26];
+    for (double& x : v) in >> x;
+    if (!in) throw std::runtime_error("cannot read castle camera " + std::string(name));
+    Frame f;
+    f.intrinsics.fx = v[0];
+    f.intrinsics.cx = v[2];
+    f.intrinsics.fy = v[4];
+    f.intrinsics.cy = v[5];
+    f.intrinsics.width = static_cast<int>(v[24]);
+    f.intrinsics.height = static_cast<int>(v[25]);
+    Eigen::Matrix3d r;
+    r << v[12], v[13], v[14], v[15], v[16], v[17], v[18], v[19], v[20];
+    f.world_from_cam = Rigid3d(Eigen::Quaterniond(r), Eigen::Vector3d(v[21], v[22], v[23]));
+    f.image = cv::imread((root / "images" / name).string(), cv::IMREAD_GRAYSCALE);
+    if (f.image.empty()) throw std::runtime_error("cannot read castle image " + std::string(name));
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+json CastleLoop(const std::vector<Frame>& frames) {
+  LoopDetector detector(LoopDetector::Options{});
+  json loops = json::array();
+  json out;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    KeyframeInput in;
+    in.id = static_cast<int64_t>(i + 1);
+    in.timestamp = static_cast<double>(in.id);
+    in.image = frames[i].image;
+    in.intrinsics = frames[i].intrinsics;
+    in.world_from_cam = Sim3d(frames[i].world_from_cam);
+    const LoopResult r = detector.Process(in);
+    if (!r.detected()) continue;
+    const Rigid3d gt =
+        frames[r.match_id - 1].world_from_cam.Inverse() * frames[i].world_from_cam;
+    loops.push_back({{"query", r.query_id},
+                     {"match", r.match_id},
+                     {"inliers", r.inliers},
+                     {"rotation_error_deg", Deg(RotationAngle(gt.rotation,
+                                                              r.match_from_query.rotation))},
+                     {"translation_direction_error_deg",
+                      AngleBetween(gt.translation, r.match_from_query.translation)}});
+  }
+  out["loops"] = loops;
+  out["ring_closure_found"] = loops.size() == 1 && loops[0]["query"] == 29 &&
+                              (loops[0]["match"] == 1 || loops[0]["match"] == 2);
+  return out;
+}
+
+KeyframeRecord Extract(const Frame& f, const FeatureOptions& o) {
+  KeyframeRecord r;
+  FeatureInput in;
+  in.image = &f.image;
+  in.intrinsics = &f.intrinsics;
+  ExtractInformativeFeatures(in, o, &r);
+  return r;
+}
+
+json CastlePairs(const std::vector<Frame>& frames) {
+  const std::vector<std::pair<int, int>> pairs = {{29, 1}, {29, 2}, {29, 15}, {20, 5}};
+  json out;
+  for (auto ranking :
+       {FeatureRanking::kPopcount, FeatureRanking::kResponse, FeatureRanking::kGridResponse}) {
+    for (int k : {15, 50}) {
+      FeatureOptions fo;
+      fo.ranking = ranking;
+      fo.max_features = k;
+      json row;
+      for (auto [q, m] : pairs) {
+        const KeyframeRecord rq = Extract(frames[q - 1], fo);
+        const KeyframeRecord rm = Extract(frames[m - 1], fo);
+        const auto matches = MatchDescriptors(rq.descriptors, rm.descriptors, MatchOptions{});
+        VerifyOptions vo;
+        vo.min_inliers = 5;
+        const auto v = VerifyPair(rq, rm, matches, vo);
+        char key[16];
+        std::snprintf(key, sizeof(key), "%02d-%02d", q, m);
+        row[key] = {{"matches", static_cast<int>(matches.size())},
+                    {"inliers", v.inliers},
+                    {"true_loop", q == 29 && (m == 1 || m == 2)}};
+      }
+      out[ToString(ranking)][std::to_string(k)] = row;
+    }
+  }
+  return out;
+}
+
+// ---- rtabmap_corridor_loop: no poses, guessed intrinsics, GT loop pairs (1-based in the file).
+json Rtabmap(const fs::path& root, bool quick) {
+  std::vector<cv::Mat> images;
+  for (int i = 1; i <= 84; ++i) {
+    images.push_back(cv::imread((root / "samples" / (std::to_string(i) + ".jpg")).string(),
+                                cv::IMREAD_GRAYSCALE));
+    if (images.back().empty()) throw std::runtime_error("cannot read rtabmap image " +
+                                                        std::to_string(i));
+  }
+  std::set<std::pair<int, int>> gt;
+  std::set<int> queries_with_gt;
+  {
+    std::ifstream in(root / "gt_loops_from_bmp.txt");
+    std::string line;
+    while (std::getline(in, line)) {
+      int q, m;
+      if (line.empty() || line[0] == '#') continue;
+      if (std::sscanf(line.c_str(), "%d %d", &q, &m) == 2) {
+        gt.insert({q - 1, m - 1});
+        queries_with_gt.insert(q - 1);
+      }
+    }
+  }
+  const std::vector<int> ks = quick ? std::vector<int>{15, 50}
+                                    : std::vector<int>{8, 10, 12, 15, 18, 32, 50, 64, 100, 300};
+  json out;
+  out["queries_with_gt"] = static_cast<int>(queries_with_gt.size());
+  for (auto ranking :
+       {FeatureRanking::kPopcount, FeatureRanking::kResponse, FeatureRanking::kGridResponse}) {
+    for (int k : ks) {
+      LoopDetector::Options options;
+      options.features.max_features = k;
+      options.features.ranking = ranking;
+      options.search.strategy = SearchStrategy::kGlobal;
+      LoopDetector detector(options);
+      std::vector<std::pair<double, bool>> scored;
+      int detections = 0, tp = 0;
+      for (size_t i = 0; i < images.size(); ++i) {
+        KeyframeInput in;
+        in.id = static_cast<int64_t>(i);
+        in.timestamp = static_cast<double>(i);
+        in.image = images[i];
+        CameraIntrinsics intr;  // fx = fy = 0.9 width, centre (docs/DETECTOR.md)
+        intr.fx = intr.fy = 0.9 * images[i].cols;
+        intr.cx = 0.5 * images[i].cols;
+        intr.cy = 0.5 * images[i].rows;
+        intr.width = images[i].cols;
+        intr.height = images[i].rows;
+        in.intrinsics = intr;
+        const LoopResult r = detector.Process(in);
+        if (!r.detected()) continue;
+        const bool ok = gt.count({static_cast<int>(r.query_id), static_cast<int>(r.match_id)}) > 0;
+        ++detections;
+        tp += ok;
+        scored.emplace_back(r.score, ok);
+      }
+      std::stable_sort(scored.begin(), scored.end(),
+                       [](const auto& a, const auto& b) { return a.first > b.first; });
+      double recall_full = 0;
+      int run = 0;
+      for (size_t i = 0; i < scored.size(); ++i) {
+        if (!scored[i].second) break;
+        ++run;
+        if (i + 1 == scored.size() || scored[i + 1].first != scored[i].first)
+          recall_full = double(run) / queries_with_gt.size();
+      }
+      out[ToString(ranking)][std::to_string(k)] = {
+          {"detections", detections},
+          {"true_positives", tp},
+          {"precision", detections ? double(tp) / detections : 1.0},
+          {"recall", double(tp) / queries_with_gt.size()},
+          {"recall_at_full_precision", recall_full}};
+    }
+  }
+  return out;
+}
+
+// ---- euroc_loop_pairs: GT body poses (Kimera-VIO test constants) + T_BS, radtan intrinsics.
+json Euroc(const fs::path& root) {
+  Eigen::Matrix4d t_bs;
+  t_bs << 0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975, 0.999557249008,
+      0.0149672133247, 0.025715529948, -0.064676986768, -0.0257744366974, 0.00375618835797,
+      0.999660727178, 0.00981073058949, 0, 0, 0, 1;
+  const Rigid3d body_from_cam = Rigid3d::FromMatrix3x4(t_bs.topRows<3>(), 1e-4);
+  const double g[4][7] = {
+      {0.338337, 0.608466, -0.535476, 0.478082, 1.573832, 2.023348, 1.738755},
+      {0.478634, 0.415595, -0.700197, 0.328505, 1.872115, 1.786064, 1.586159},
+      {0.3394, -0.672895, -0.492724, -0.435018, -0.662997, -0.495046, 1.347300},
+      {0.39266, -0.590667, -0.58023, -0.400326, -0.345638, -0.501712, 1.320441}};
+  std::vector<Rigid3d> world_from_cam;
+  for (const auto& r : g)
+    world_from_cam.push_back(Rigid3d(Eigen::Quaterniond(r[0], r[1], r[2], r[3]),
+                                     Eigen::Vector3d(r[4], r[5], r[6])) *
+                             body_from_cam);
+  CameraIntrinsics k;
+  k.fx = 458.654;
+  k.fy = 457.296;
+  k.cx = 367.215;
+  k.cy = 248.375;
+  k.width = 752;
+  k.height = 480;
+  k.distortion_model = DistortionModel::kRadialTangential;
+  k.distortion = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
+  json out = json::array();
+  for (int pair = 0; pair < 2; ++pair) {
+    const int m = 2 * pair, q = 2 * pair + 1;
+    LoopDetector::Options options;
+    options.search.strategy = SearchStrategy::kGlobal;
+    options.search.exclude_recent = 0;
+    options.min_path_ratio = 0;
+    LoopDetector detector(options);
+    LoopResult r;
+    for (int i : {m, q}) {
+      KeyframeInput in;
+      in.id = i;
+      in.timestamp = static_cast<double>(i);
+      in.image = cv::imread((root / ("left_img_" + std::to_string(i) + ".png")).string(),
+                            cv::IMREAD_GRAYSCALE);
+      if (in.image.empty()) throw std::runtime_error("cannot read euroc image " + std::to_string(i));
+      in.intrinsics = k;
+      in.world_from_cam = Sim3d(world_from_cam[i]);
+      r = detector.Process(in);
+    }
+    const Rigid3d rel = world_from_cam[m].Inverse() * world_from_cam[q];
+    out.push_back({{"pair", {m, q}},
+                   {"status", ToString(r.status)},
+                   {"inliers", r.inliers},
+                   {"matches", r.matches},
+                   {"rotation_error_deg", Deg(RotationAngle(rel.rotation,
+                                                            r.match_from_query.rotation))},
+                   {"translation_direction_error_deg",
+                    AngleBetween(rel.translation, r.match_from_query.translation)}});
+  }
+  return out;
+}
+
+int Main(int argc, char** argv) {
+  fs::path data = std::getenv("SPARSELOOP_DATA") ? fs::path(std::getenv("SPARSELOOP_DATA"))
+                                                 : fs::path(SPARSELOOP_DATA_DIR);
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--data" && i + 1 < argc) {
+      data = argv[++i];
+    } else if (a == "--quick") {
+      quick = true;
+    } else if (a == "--help" || a == "-h") {
+      std::printf("usage: detector_accuracy [--data DIR] [--quick]\n");
+      return 0;
+    } else {
+      std::fprintf(stderr, "detector_accuracy: unknown argument '%s' (try --help)\n", a.c_str());
+      return 2;
+    }
+  }
+  for (const char* d : {"castle_p30_768", "rtabmap_corridor_loop", "euroc_loop_pairs"}) {
+    if (!fs::exists(data / d)) {
+      std::fprintf(stderr,
+                   "detector_accuracy: real data not found: %s (pass --data DIR or set "
+                   "SPARSELOOP_DATA to the shared data folder)\n",
+                   (data / d).string().c_str());
+      return 2;
+    }
+  }
+  cv::setNumThreads(1);
+  json out;
+  out["data"] = data.string();
+  const auto castle = LoadCastle(data / "castle_p30_768");
+  out["castle"] = CastleLoop(castle);
+  out["castle_pairs"] = CastlePairs(castle);
+  out["euroc"] = Euroc(data / "euroc_loop_pairs");
+  out["rtabmap"] = Rtabmap(data / "rtabmap_corridor_loop", quick);
+  std::cout << out.dump(1) << "\n";
+  return 0;
+}
+
+}  // namespace
+}  // namespace sparseloop
+
+int main(int argc, char** argv) {
+  try {
+    return sparseloop::Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "detector_accuracy: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,155 @@
+// Pose-graph accuracy numbers for docs/BENCHMARKS.md, as ONE JSON object on stdout.
+//
+//   posegraph_accuracy [--data DIR]
+//
+// DIR is the shared real-data folder (default: $SPARSELOOP_DATA, else the configured
+// SPARSELOOP_DATA_DIR, i.e. ../shared/data next to the repository). Exit code 2 with a message on
+// stderr when the data is absent or an argument is wrong.
+//
+// Reports, for each real-drift case of tests/posegraph/loop_harness.h (KITTI 09 monocular VO,
+// four EuRoC monocular VIO runs; loops from GT as a monocular vSLAM would measure them):
+// raw ATE, corrected ATE with true loops, with 20 % false loops (default robust solve) and the
+// same with plain least squares, loop counts and solve time. For the standard graphs in
+// pose_graphs/: costs, iterations, time and status; for sphere2500 also the ATE against its GT.
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "loop_harness.h"
+#include "sparseloop/core/timer.h"
+#include "sparseloop/posegraph/g2o.h"
+
+namespace sparseloop {
+namespace {
+
+std::string Json(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : "null"; }
+
+std::string SummaryJson(const PoseGraphSummary& s) {
+  return fmt::format(
+      "\"initial_cost\": {}, \"final_cost\": {}, \"iterations\": {}, \"solve_seconds\": {}, "
+      "\"status\": \"{}\", \"converged\": {}",
+      Json(s.initial_cost), Json(s.final_cost), s.iterations, Json(s.solve_seconds),
+      ToString(s.status), s.status == PoseGraphStatus::kConverged ? "true" : "false");
+}
+
+std::string DriftCaseJson(const test::DriftCase& c, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const test::HarnessLoops clean = test::MakeHarnessLoops(c.raw, c.gt, c.harness, rng);
+  test::LoopHarnessOptions with_false = c.harness;
+  with_false.outlier_fraction = 0.2;
+  const test::HarnessLoops dirty = test::MakeHarnessLoops(c.raw, c.gt, with_false, rng);
+  PoseGraphOptions plain;
+  plain.rejection = OutlierRejection::kNone;
+  const double raw_ate = test::AlignedAte(c.raw, c.gt);
+  const auto r_clean = test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{});
+  const auto r_dirty = test::CorrectAndScore(c.raw, c.gt, dirty.loops, PoseGraphOptions{});
+  const auto r_plain = test::CorrectAndScore(c.raw, c.gt, dirty.loops, plain);
+  std::vector<bool> rejected(dirty.loops.size(), false);
+  for (size_t k : r_dirty.summary.rejected_loops) rejected[k] = true;
+  size_t num_false = 0, accepted_true = 0, accepted_false = 0;
+  for (size_t k = 0; k < dirty.loops.size(); ++k) {
+    num_false += dirty.is_false[k];
+    if (!rejected[k]) (dirty.is_false[k] ? accepted_false : accepted_true)++;
+  }
+  return fmt::format(
+      "\"{}\": {{\"keyframes\": {}, \"raw_ate_m\": {}, \"clean\": {{\"loops\": {}, \"ate_m\": {}, "
+      "\"ratio\": {}, \"solve_seconds\": {}}}, \"false_20pct\": {{\"loops_true\": {}, "
+      "\"loops_false\": {}, \"accepted_true\": {}, \"accepted_false\": {}, \"ate_m\": {}, "
+      "\"ratio\": {}, \"solve_seconds\": {}, \"pcm_seconds\": {}}}, \"false_20pct_plain_ls\": "
+      "{{\"ate_m\": {}, \"ratio\": {}, \"solve_seconds\": {}}}}}",
+      c.name, c.raw.size(), Json(raw_ate), clean.loops.size(), Json(r_clean.ate),
+      Json(r_clean.ate / raw_ate), Json(r_clean.summary.solve_seconds),
+      dirty.loops.size() - num_false, num_false, accepted_true, accepted_false, Json(r_dirty.ate),
+      Json(r_dirty.ate / raw_ate), Json(r_dirty.summary.solve_seconds),
+      Json(r_dirty.summary.rejection_seconds), Json(r_plain.ate), Json(r_plain.ate / raw_ate),
+      Json(r_plain.summary.solve_seconds));
+}
+
+PoseGraphOptions PlainOptions(int max_iterations) {
+  PoseGraphOptions options;
+  options.rejection = OutlierRejection::kNone;
+  options.max_iterations = max_iterations;
+  return options;
+}
+
+double SphereAte(const PoseGraph& g, const PoseGraph& gt) {
+  std::vector<Eigen::Vector3d> est, ref;
+  for (int64_t id : g.VertexIds()) {
+    est.push_back(g.Pose(id).translation);
+    ref.push_back(gt.Pose(id).translation);
+  }
+  return Umeyama(est, ref, Alignment::kSE3).rms_residual;
+}
+
+int Main(int argc, char** argv) {
+  std::filesystem::path data = SPARSELOOP_DATA_DIR;
+  if (const char* env = std::getenv("SPARSELOOP_DATA")) data = env;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--data" && i + 1 < argc) {
+      data = argv[++i];
+    } else if (arg == "--help" || arg == "-h") {
+      std::cerr << "usage: posegraph_accuracy [--data DIR]   (prints one JSON object)\n";
+      return 0;
+    } else {
+      std::cerr << "posegraph_accuracy: unknown argument '" << arg
+                << "' (usage: posegraph_accuracy [--data DIR])\n";
+      return 2;
+    }
+  }
+  for (const char* needed : {"vslam_trajectories/kitti09_10/example_0/09.txt",
+                             "vslam_trajectories/euroc/MH_01/vio_mono_estimate.txt",
+                             "kitti_gt_poses/09.txt", "pose_graphs/parking-garage.g2o",
+                             "pose_graphs/sphere_bignoise_vertex3.g2o",
+                             "pose_graphs/sphere2500.txt",
+                             "pose_graphs/sphere2500_groundtruth.txt"}) {
+    if (!std::filesystem::exists(data / needed)) {
+      std::cerr << "posegraph_accuracy: real data not found: " << (data / needed)
+                << "\n  pass --data DIR or set SPARSELOOP_DATA to the shared data folder\n";
+      return 2;
+    }
+  }
+  std::string out = "{\"drift\": {";
+  uint64_t seed = 20261122 + 100;  // the seeds of tests/posegraph/drift_data_test.cc
+  bool first = true;
+  for (const test::DriftCase& c : test::LoadDriftCases(data)) {
+    out += (first ? "" : ", ") + DriftCaseJson(c, seed++);
+    first = false;
+  }
+  out += "}, \"graphs\": {";
+  {
+    PoseGraph g = ReadG2o(data / "pose_graphs/parking-garage.g2o");
+    out += "\"parking-garage.g2o\": {" + SummaryJson(g.Optimize(PlainOptions(100))) + "}";
+  }
+  {
+    PoseGraph g = ReadG2o(data / "pose_graphs/sphere_bignoise_vertex3.g2o");
+    out += ", \"sphere_bignoise_vertex3.g2o\": {" + SummaryJson(g.Optimize(PlainOptions(300))) +
+           "}";
+  }
+  {
+    PoseGraph g = ReadG2o(data / "pose_graphs/sphere2500.txt");
+    const PoseGraph gt = ReadG2o(data / "pose_graphs/sphere2500_groundtruth.txt");
+    const double before = SphereAte(g, gt);
+    const PoseGraphSummary s = g.Optimize(PlainOptions(100));
+    out += fmt::format(", \"sphere2500.txt\": {{{}, \"ate_before_m\": {}, \"ate_after_m\": {}}}",
+                       SummaryJson(s), Json(before), Json(SphereAte(g, gt)));
+  }
+  out += "}}";
+  std::cout << out << "\n";
+  return 0;
+}
+
+}  // namespace
+}  // namespace sparseloop
+
+int main(int argc, char** argv) {
+  try {
+    return sparseloop::Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "posegraph_accuracy: " << e.what() << "\n";
+    return 2;
+  }
+}

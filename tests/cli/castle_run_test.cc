@@ -1,0 +1,112 @@
+// End to end on real images: `sparseloop run` on Strecha castle-P30 (one ring around a
+// courtyard, 30 views with exact GT poses) with a drifted copy of the GT as the raw vSLAM poses.
+// The detector must find the ring closure 0029 -> 0001 (or 0002) with the drifted poses, and the
+// pose graph must lower the ATE against GT.
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "cli/cli_runner.h"
+#include "sparseloop/core/sim3.h"
+#include "test_util.h"
+
+namespace sparseloop::test {
+namespace {
+
+// Strecha .camera: K (3x3), 3 zeros, R (3x3), camera centre (3), width height;
+// world_from_cam = [R | c] (tests/loop/real_data.h checks this against the images).
+Rigid3d ReadCastlePose(const std::filesystem::path& file, double k[4]) {
+  std::ifstream in(file);
+  double v[26];
+  for (double& x : v) in >> x;
+  EXPECT_TRUE(in.good()) << file;
+  k[0] = v[0];
+  k[1] = v[4];
+  k[2] = v[2];
+  k[3] = v[5];
+  Eigen::Matrix3d r;
+  r << v[12], v[13], v[14], v[15], v[16], v[17], v[18], v[19], v[20];
+  return Rigid3d(Eigen::Quaterniond(r), Eigen::Vector3d(v[21], v[22], v[23]));
+}
+
+void WriteKitti(const std::filesystem::path& path, const std::vector<Sim3d>& poses) {
+  std::ofstream out(path);
+  for (const Sim3d& p : poses) {
+    const Eigen::Matrix3d r = p.rotation.toRotationMatrix();
+    for (int row = 0; row < 3; ++row) {
+      out << fmt::format("{:.12g} {:.12g} {:.12g} {:.12g}", r(row, 0), r(row, 1), r(row, 2),
+                         p.translation[row]);
+      out << (row < 2 ? " " : "\n");
+    }
+  }
+}
+
+// Monocular drift: each raw step is the GT step with an extra rotation of `yaw_deg` about the
+// camera's y axis (image down: heading drift) and its length multiplied by exp(i * log_scale),
+// i.e. the accumulated yaw and scale drift of a monocular VO. Frame 0 is exact.
+std::vector<Sim3d> Drift(const std::vector<Sim3d>& gt, double yaw_deg, double log_scale) {
+  std::vector<Sim3d> raw = {gt[0]};
+  const Eigen::Quaterniond yaw(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  for (size_t i = 1; i < gt.size(); ++i) {
+    Sim3d step = gt[i - 1].Inverse() * gt[i];
+    step.rotation = step.rotation * yaw;
+    step.translation *= std::exp(static_cast<double>(i) * log_scale);
+    Sim3d next = raw.back() * step;
+    next.scale = 1.0;
+    raw.push_back(next);
+  }
+  return raw;
+}
+
+TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
+  SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
+  const auto root = DataDir() / "castle_p30_768";
+  std::vector<Sim3d> gt;
+  double k[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 30; ++i) {
+    gt.push_back(Sim3d(ReadCastlePose(
+        root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i), k)));
+  }
+  // 0.3 deg yaw and 0.5 % scale per step: 8.7 deg and 15 % at the end of the ring. KNOWN GAP: with
+  // 1 deg / 1 % per step (29 deg, 34 %) the detector reports no loop at all (with the GT as raw
+  // poses the same command finds 29 -> 1): the search area / pose-prior check is the suspect,
+  // not yet analysed (docs/SEARCH_AREA.md).
+  const std::vector<Sim3d> raw = Drift(gt, 0.3, 0.005);
+  auto fixtures = TempDir();
+  fixtures += "_fixtures";
+  std::filesystem::remove_all(fixtures);
+  std::filesystem::create_directories(fixtures);
+  WriteKitti(fixtures / "gt.txt", gt);
+  WriteKitti(fixtures / "raw.txt", raw);
+  const auto out = fixtures / "out";
+  const CliResult r =
+      RunCli({"run", "--dataset", "images:" + (root / "images").string(), "--intrinsics",
+              fmt::format("{},{},{},{}", k[0], k[1], k[2], k[3]), "--poses",
+              (fixtures / "raw.txt").string(), "--gt", (fixtures / "gt.txt").string(), "--out",
+              out.string(), "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(out / "summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  const double raw_ate = summary["eval"]["raw"]["ate_rmse_m"].get<double>();
+  const double corrected_ate = summary["eval"]["corrected"]["ate_rmse_m"].get<double>();
+  std::ifstream loops_in(out / "loops.csv");
+  std::string loops_csv((std::istreambuf_iterator<char>(loops_in)), {});
+  std::cerr << fmt::format("castle drifted: raw ATE {:.3f} m, corrected {:.3f} m ({:.0f}%)\n",
+                           raw_ate, corrected_ate, 100 * corrected_ate / raw_ate)
+            << loops_csv;
+  EXPECT_TRUE(loops_csv.find("\n29,1,") != std::string::npos ||
+              loops_csv.find("\n29,2,") != std::string::npos)
+      << "the ring closure 0029 -> 0001/0002 was not detected:\n"
+      << loops_csv;
+  EXPECT_GE(summary["accepted_loops"].get<int>(), 1);
+  // Reached: 1.107 -> 0.941 m (85 %). One 2D-only loop (unit translation, no scale) over a
+  // 29-view ring cannot undo the scale drift inside the ring.
+  EXPECT_LT(corrected_ate, 0.9 * raw_ate);
+}
+
+}  // namespace
+}  // namespace sparseloop::test

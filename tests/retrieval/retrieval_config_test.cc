@@ -1,0 +1,87 @@
+// JSON configuration of the candidate retrieval (detector.retrieval, detector.ann) and the two
+// baseline configuration files in bench/configs.
+#include <gtest/gtest.h>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/pipeline/config.h"
+#include "test_util.h"
+
+namespace sparseloop {
+namespace {
+
+TEST(RetrievalConfig, RoundTripOfTheNewKeys) {
+  PipelineOptions o;
+  ApplyConfig(nlohmann::json::parse(R"({"detector": {"retrieval": "ann",
+      "ann": {"hnsw_m": 8, "ef_construction": 20, "ef_search": 48, "neighbors": 3,
+              "max_distance": 50, "max_candidates": 7, "num_threads": 2}}})"),
+              "cfg.json", &o);
+  EXPECT_EQ(o.detector.retrieval, CandidateRetrieval::kAnn);
+  EXPECT_EQ(o.detector.ann.hnsw_m, 8);
+  EXPECT_EQ(o.detector.ann.ef_construction, 20);
+  EXPECT_EQ(o.detector.ann.ef_search, 48);
+  EXPECT_EQ(o.detector.ann.neighbors, 3);
+  EXPECT_EQ(o.detector.ann.max_distance, 50);
+  EXPECT_EQ(o.detector.ann.max_candidates, 7);
+  EXPECT_EQ(o.detector.ann.num_threads, 2);
+  // Written back and read again: the same options.
+  const nlohmann::json j = ConfigToJson(o);
+  EXPECT_EQ(j["detector"]["retrieval"], "ann");
+  EXPECT_EQ(j["detector"]["ann"]["max_candidates"], 7);
+  PipelineOptions again;
+  ApplyConfig(j, "again.json", &again);
+  EXPECT_EQ(ConfigToJson(again), j);
+  EXPECT_EQ(again.detector.retrieval, CandidateRetrieval::kAnn);
+  // The default is brute force.
+  EXPECT_EQ(ConfigToJson(PipelineOptions{})["detector"]["retrieval"], "brute_force");
+}
+
+std::string ErrorOf(const std::string& text) {
+  PipelineOptions o;
+  try {
+    ApplyConfig(nlohmann::json::parse(text), "cfg.json", &o);
+  } catch (const FileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RetrievalConfig, RejectsUnknownAndInvalid) {
+  EXPECT_NE(ErrorOf(R"({"detector": {"retrieval": "hnsw"}})").find("detector.retrieval"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"efsearch": 3}}})").find("detector.ann.efsearch"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"neighbors": 2.5}}})").find("detector.ann.neighbors"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"neighbors": 40, "ef_search": 32}}})"), "");
+}
+
+// bench/configs/full_global.json and full_ann.json: parse strictly and mean what they say.
+TEST(RetrievalConfig, BaselineConfigFiles) {
+  const auto dir = test::SourceDir() / "bench" / "configs";
+  for (const char* name : {"full_global.json", "full_ann.json"}) {
+    SCOPED_TRACE(name);
+    PipelineOptions o;
+    LoadConfigFile(dir / name, &o);
+    const LoopDetector::Options& d = o.detector;
+    EXPECT_EQ(d.features.max_features, 1000);
+    EXPECT_EQ(d.features.orb_candidates, 1000);
+    EXPECT_FALSE(d.features.use_gradient_mask);
+    EXPECT_EQ(d.search.strategy, SearchStrategy::kGlobal);
+    EXPECT_FALSE(d.check_consistency);
+    EXPECT_EQ(d.min_path_ratio, 0.0);
+    // The same verification as sparseloop's defaults.
+    const LoopDetector::Options defaults;
+    EXPECT_EQ(d.search.exclude_recent, defaults.search.exclude_recent);
+    EXPECT_EQ(d.min_matches, defaults.min_matches);
+    EXPECT_EQ(d.max_verify, defaults.max_verify);
+    EXPECT_EQ(d.min_inlier_fraction_of_k, defaults.min_inlier_fraction_of_k);
+    EXPECT_EQ(d.verify.min_inliers, defaults.verify.min_inliers);
+    EXPECT_EQ(d.verify.threshold_px, defaults.verify.threshold_px);
+    EXPECT_EQ(d.verify.use_fundamental, defaults.verify.use_fundamental);
+    EXPECT_EQ(d.retrieval, std::string(name) == "full_ann.json" ? CandidateRetrieval::kAnn
+                                                                 : CandidateRetrieval::kBruteForce);
+  }
+}
+
+}  // namespace
+}  // namespace sparseloop
