@@ -14,6 +14,7 @@
 
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/matching/descriptor_matching.h"
+#include "sparseloop/synthetic/worlds.h"
 
 namespace sparseloop {
 namespace {
@@ -21,15 +22,8 @@ namespace {
 const std::filesystem::path kKitti =
     std::filesystem::path(SPARSELOOP_DATA_DIR) / "kitti07_first160" / "image_0";
 
-CameraIntrinsics KittiCamera() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 707.0912;
-  k.cx = 601.8873;
-  k.cy = 183.1104;
-  k.width = 1226;
-  k.height = 370;
-  return k;
-}
+// KITTI 04-12 cam0 (kitti07_first160), from the one table in the synthetic module.
+CameraIntrinsics KittiCamera() { return synthetic::KittiCam0Intrinsics(7); }
 
 const std::vector<cv::Mat>& KittiImages() {
   static const std::vector<cv::Mat> images = [] {

@@ -72,8 +72,11 @@ def plan(quick):
     return seqs
 
 
+SOAK_KEYFRAMES_QUICK = 10000
+
+
 def k_sweep(quick):
-    return [8, 10, 12, 15, 18, 32, 64] if quick else list(range(8, 19)) + [32, 64]
+    return [8, 12, 15, 18, 32, 64] if quick else list(range(8, 19)) + [32, 64]
 
 
 # --------------------------------------------------------------------------------------------
@@ -474,7 +477,7 @@ def run_all(r, quick):
     t2 = time.time()
     base_seq = "street07"
     baseline_cfgs = {}
-    for b in ("full_global", "full_ann"):
+    for b in ("full_global", "full_global_24", "full_ann"):
         p = ROOT / "bench" / "configs" / f"{b}.json"
         if p.exists():
             baseline_cfgs[b] = json.loads(p.read_text())
@@ -493,11 +496,16 @@ def run_all(r, quick):
                                       "detector_accuracy"),
         "posegraph_accuracy": json_exe(r, "posegraph_accuracy", ["--data", DATA],
                                        "posegraph_accuracy"),
-        "soak": json_exe(r, "bench_soak", ["--keyframes", 20000 if quick else 100000, "--out",
-                                           r.out / "soak.csv"], "soak"),
+        # K = 15 (the paper's K): the memory budget of issue #7 is per keyframe record + graph.
+        "soak": json_exe(r, "bench_soak", ["--keyframes", SOAK_KEYFRAMES_QUICK if quick else
+                                           100000, "--k", 15, "--out", r.out / "soak.csv"],
+                         "soak"),
     }
     min_time = ["--benchmark_min_time=0.2"] if quick else []
-    micro = {name: google_bench(r, exe, name, min_time) for name, exe in (
+    # Building the full-ann index of 1,000 keyframes x 1,000 descriptors alone takes ~5 minutes:
+    # only the full run measures it.
+    extra = {"bench_retrieval": ["--benchmark_filter=-BM_FullAnnQuery/1000"] if quick else []}
+    micro = {name: google_bench(r, exe, name, min_time + extra.get(name, [])) for name, exe in (
         ("bench_detector", "bench_detector"), ("bench_search", "bench_search"),
         ("bench_posegraph", "bench_posegraph"), ("bench_retrieval", "bench_retrieval"))}
     timings["micro_s"] = time.time() - t3
@@ -602,28 +610,40 @@ def plot_robustness(res, path):
 
 
 def scaling_series(res):
-    """Micro-benchmark rows named NAME/N (N = stored keyframes) -> {name: [(N, ms)]}."""
+    """Query micro-benchmarks against the number of stored keyframes N -> {name: [(N, ms)]}.
+
+    Rows are named BM_X/N[/other args]; the series key keeps the other args (e.g. K). For
+    BM_FullGlobal the whole-query time is `query_ms_extrapolated` (it matches a capped number of
+    candidates and scales linearly, see bench_retrieval.cc)."""
     series = {}
     for exe, rows in res["micro"].items():
         for row in rows:
-            parts = row["name"].split("/")
-            if len(parts) < 2 or not parts[-1].isdigit() or int(parts[-1]) < 1000:
+            parts = [p for p in row["name"].split("/") if not p.startswith("iterations:")]
+            idx = next((i for i, p in enumerate(parts) if i > 0 and p.isdigit()), None)
+            if idx is None:
                 continue
-            if "Query" not in parts[0] and "query" not in parts[0].lower():
+            base = "/".join(parts[:idx])
+            if not any(w in base for w in ("Query", "PaperArea", "FullGlobal")):
                 continue
-            series.setdefault(f"{exe}:{'/'.join(parts[:-1])}", []).append((int(parts[-1]),
-                                                                           row["ms"]))
+            n = int(parts[idx])
+            if n < 100:
+                continue
+            ms = row.get("query_ms_extrapolated", row["ms"]) if "FullGlobal" in base else row["ms"]
+            rest = [] if "FullGlobal" in base else parts[idx + 1:]
+            key = f"{exe}:{base}" + "".join(f"/K={a}" for a in rest)
+            series.setdefault(key, []).append((n, ms))
     return {k: sorted(v) for k, v in series.items() if len(v) >= 2}
 
 
 def plot_scaling(series, path):
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+    fig, ax = plt.subplots(figsize=(9, 4.2))
     for name, pts in series.items():
         ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=name.split(":", 1)[1])
     ax.set_xlabel("stored keyframes")
     ax.set_ylabel("query time (ms)")
+    ax.set_title("Query time against map size (full-global: 1,000 x 1,000 matching per candidate)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -761,9 +781,14 @@ def targets_section(res):
         "recall_100p_accepted", float("nan"))) for k in res["k_sweep"] if k <= 32]
     best_k, best_r = max(small_k, key=lambda x: -1 if math.isnan(x[1]) else x[1])
     if fg:
+        # Compare with the better of the two full-global thresholds.
+        fg_r = max(b[v]["recall_100p_accepted"] for v in ("full_global", "full_global_24") if v in b)
+        if fg_r > 0:
+            st = status(best_r, best_r >= fg_r)
+        else:
+            st = "not meaningful (the baseline recalls nothing here)"
         rows.append([f"street recall@100%P at K <= 32 >= full-global's ({res['baseline_sequence']})",
-                     f"K={best_k}: {fmt(best_r)} vs full-global {fmt(fg['recall_100p_accepted'])}",
-                     status(best_r, best_r >= fg["recall_100p_accepted"])])
+                     f"best K <= 32: K={best_k}, {fmt(best_r)} vs best full-global {fmt(fg_r)}", st])
         sl = b["sparseloop_default"]
         ratio = fg["ms_total_median"] / sl["ms_total_median"]
         rows.append([f"time per keyframe >= 5x lower than full-global (at {fg['keyframes']} "
@@ -781,7 +806,7 @@ def targets_section(res):
         rows.append(["baselines", "bench/configs/full_global.json missing", "**not measured**"])
     series = scaling_series(res)
     for name, pts in series.items():
-        if "sparseloop" in name.lower() or "Stored" in name:
+        if any(w in name for w in ("PaperArea", "QueryStoredKeyframes", "BM_Query/paper")):
             growth = pts[-1][1] / pts[0][1]
             rows.append([f"query time flat from {pts[0][0]} to {pts[-1][0]} keyframes ({name})",
                          f"x{fmt(growth)} ({fmt(pts[0][1], 3)} -> {fmt(pts[-1][1], 3)} ms)",
@@ -848,7 +873,7 @@ def table1_section(res):
              "K=15).\n")
     da = res["external"].get("detector_accuracy", {})
     if "missing" not in da:
-        text += "\nReal sets (from `detector_accuracy`):\n\n" + json_md(da) + "\n"
+        text += real_sets_md(da)
     else:
         text += f"\nReal sets: not measured ({da['missing']}).\n"
     return text
@@ -877,9 +902,13 @@ def baseline_section(res):
     rows = [stage_row(v, m, sl["ms_total_median"] if sl else None) for v, m in b.items()]
     text = (f"\n## Baselines on the same frames ({res['baseline_sequence']}, "
             f"{sl['keyframes'] if sl else '?'} keyframes, run one at a time)\n\n"
-            "`full-global`: 1,000 ORB per keyframe from the whole image, every past keyframe a "
-            "candidate, the same verification, no pose prior. `full-ann`: the same features in an "
-            "approximate nearest-neighbour index, top-voted keyframes verified. Stage cells are "
+            "`full_global`: 1,000 ORB per keyframe from the whole image, every past keyframe "
+            "but the 50 most recent a candidate (the temporal window classic detectors use, else "
+            "the previous seconds of driving win every query), the same verification (at least "
+            "max(12, 8 % of K) = 80 inliers), no pose prior. `full_global_24`: the same with the "
+            "absolute inlier threshold of sparseloop's default (24), to show what a lower "
+            "threshold costs without the pose prior. `full_ann`: the `full_global` features in an "
+            "approximate nearest-neighbour index (FAISS), top-voted keyframes verified. Stage cells are "
             "median / p99 ms; `x total` = median total time relative to sparseloop's default.\n\n" +
             table(["method", "recall@100%P", "false detected", "false accepted", "extract",
                    "search", "match", "verify", "total", "x total", "bytes/kf"], rows) + "\n")
@@ -912,7 +941,7 @@ def accuracy_section(res):
     pa = res["external"].get("posegraph_accuracy", {})
     if "missing" not in pa:
         text += ("\nReal vSLAM drift (`posegraph_accuracy`: loops from GT as a monocular vSLAM "
-                 "would measure them; see docs/POSEGRAPH.md):\n\n" + json_md(pa) + "\n")
+                 "would measure them; see docs/POSEGRAPH.md):\n\n" + posegraph_md(pa) + "\n")
     else:
         text += f"\nReal vSLAM drift: not measured ({pa['missing']}).\n"
     return text
@@ -937,13 +966,120 @@ def robustness_section(res):
             "\n\n![robustness](img/bench_robustness.png)\n")
 
 
+def real_sets_md(da):
+    """detector_accuracy's JSON as the tables of docs/DETECTOR.md (default options unless noted)."""
+    text = "\n### Real sets (`detector_accuracy`, real images)\n"
+    castle = da.get("castle", {})
+    if castle:
+        rows = [[f"{l['query']} -> {l['match']}", l["inliers"], l["rotation_error_deg"],
+                 l["translation_direction_error_deg"]] for l in castle.get("loops", [])]
+        text += ("\ncastle_p30_768, views 1..29 in order, GT poses as raw poses, default options: "
+                 f"ring closure found: **{castle.get('ring_closure_found')}**; every reported "
+                 "loop (targets: rotation < 2 deg, translation direction < 5 deg):\n\n" +
+                 table(["loop", "inliers", "rotation err deg", "direction err deg"], rows) + "\n")
+    eu = da.get("euroc", [])
+    if eu:
+        rows = [[f"{e['pair'][0]}-{e['pair'][1]}", e.get("status"), e.get("matches"),
+                 e.get("inliers"), e.get("rotation_error_deg"),
+                 e.get("translation_direction_error_deg")] for e in eu]
+        text += ("\neuroc_loop_pairs (two images each, global search; target: both verified, "
+                 "rotation < 3 deg):\n\n" + table(["pair", "status", "matches", "inliers",
+                                                     "rotation err deg", "direction err deg"],
+                                                    rows) + "\n")
+    cp = da.get("castle_pairs", {})
+    if cp:
+        pairs = sorted({p for ks in cp.values() for prs in ks.values() for p in prs})
+        rows = []
+        for ranking, ks in cp.items():
+            for k in sorted(ks, key=int):
+                rows.append([ranking, k] + [f"{ks[k][p]['matches']}/{ks[k][p]['inliers']}"
+                                            if p in ks[k] else "" for p in pairs])
+        truth = {p: any(ks[k].get(p, {}).get("true_loop") for ks in cp.values() for k in ks)
+                 for p in pairs}
+        text += ("\ncastle pairs, descriptor matches / essential-matrix inliers by ranking and K "
+                 "(" + ", ".join(f"{p} {'true loop' if truth[p] else 'false pair'}"
+                                 for p in pairs) + "):\n\n" +
+                 table(["ranking", "K"] + pairs, rows) + "\n")
+    rt = da.get("rtabmap", {})
+    if rt:
+        rankings = [k for k, v in rt.items() if isinstance(v, dict)]
+        ks = sorted({k for r in rankings for k in rt[r]}, key=int)
+        rows = [[r] + [rt[r][k]["recall_at_full_precision"] if k in rt[r] else "" for k in ks]
+                for r in rankings]
+        prec = min(rt[r][k]["precision"] for r in rankings for k in rt[r])
+        text += ("\nrtabmap_corridor_loop (no poses: global search; "
+                 f"{rt.get('queries_with_gt', '?')} query images with a GT loop): recall at 100 % "
+                 f"precision by ranking and K; lowest precision in the table: **{fmt(prec, 3)}**"
+                 "\n\n" + table(["ranking"] + [f"K={k}" for k in ks], rows) + "\n")
+    return text
+
+
+def posegraph_md(pa):
+    text = ""
+    drift = pa.get("drift", {})
+    if drift:
+        rows = []
+        for seq, d in drift.items():
+            c, f, p = d.get("clean", {}), d.get("false_20pct", {}), d.get("false_20pct_plain_ls", {})
+            pct = lambda x: f"{fmt(x.get('ate_m'), 3)} ({fmt(100 * x.get('ratio', float('nan')), 0)} %)"  # noqa: E731
+            rows.append([seq, d.get("keyframes"), c.get("loops"), fmt(d.get("raw_ate_m"), 3),
+                         pct(c), status(c.get("ratio", float("nan")),
+                                        c.get("ratio", 9) <= 0.30),
+                         pct(f) + f", {f.get('accepted_false', '?')} of "
+                         f"{f.get('loops_false', '?')} false accepted",
+                         status(f.get("ratio", float("nan")), f.get("ratio", 9) <= 0.40), pct(p)])
+        text += ("Sim(3)-aligned ATE in metres (and as % of raw). Targets (issue #4): <= 30 % of "
+                 "raw with true loops, <= 40 % with 20 % false loops; plain least squares on the "
+                 "same graph for comparison.\n\n" +
+                 table(["sequence", "keyframes", "loops", "raw ATE", "true loops", "<= 30 %",
+                        "20 % false, PCM", "<= 40 %", "20 % false, plain LS"], rows) + "\n")
+    graphs = pa.get("graphs", {})
+    if graphs:
+        rows = [[g, v.get("initial_cost"), v.get("final_cost"), v.get("iterations"),
+                 v.get("solve_seconds"), v.get("status"),
+                 f"{fmt(v['ate_before_m'], 3)} -> {fmt(v['ate_after_m'], 3)}"
+                 if "ate_after_m" in v else ""]
+                for g, v in graphs.items()]
+        text += ("\nStandard pose graphs (Ceres LM, sparse normal Cholesky):\n\n" +
+                 table(["graph", "initial cost", "final cost", "iterations", "solve s",
+                        "status", "ATE vs GT m (initial -> final)"], rows) + "\n")
+    rest = {k: v for k, v in pa.items() if k not in ("drift", "graphs")}
+    if rest:
+        text += "\n" + json_md(rest) + "\n"
+    return text
+
+
+def soak_md(soak):
+    slope = soak.get("rss_bytes_per_keyframe_second_half", float("nan"))
+    rows = [["keyframes pushed", soak.get("keyframes")], ["K", soak.get("k")],
+            ["check every", soak.get("check_every")], ["optimizer", soak.get("optimizer")],
+            ["loops detected", soak.get("loops")], ["completed solves", soak.get("solves")],
+            ["record bytes per keyframe (Bytes())", soak.get("record_bytes_per_keyframe")],
+            ["RSS growth per keyframe, 2nd half (B)", slope],
+            ["RSS at start / end / peak (MiB)",
+             f"{fmt(soak.get('rss_start_kib', 0) / 1024, 0)} / "
+             f"{fmt(soak.get('rss_end_kib', 0) / 1024, 0)} / "
+             f"{fmt(soak.get('peak_rss_kib', 0) / 1024, 0)}"],
+            ["mean ms per keyframe (wall)", soak.get("ms_per_keyframe")],
+            ["wall time (s)", soak.get("total_seconds")]]
+    full = soak.get("keyframes", 0) >= 100000
+    verdict = ("met" if slope <= 2048 else "missed") if full else "not judged in quick mode"
+    return ("Synthetic nadir flight (`bench_soak`, docs/ROBUSTNESS.md), detector + background "
+            "optimiser. Target (issue #7): RSS growth <= 2 KiB per keyframe beyond the fixed "
+            f"overhead, over 100,000 keyframes: **{verdict}**; measured "
+            f"{fmt(slope, 0)} B/keyframe over the second half of {soak.get('keyframes')} "
+            "keyframes" + ("" if full else " (the 100,000-keyframe run is part of the full mode, "
+                           "`scripts/benchmark`)") + ".\n\n" +
+            table(["quantity", "value"], rows))
+
+
 def external_section(res):
     soak = res["external"].get("soak", {})
     text = "\n## Long run (soak)\n\n"
     if "missing" in soak:
         text += f"Not measured ({soak['missing']}).\n"
     else:
-        text += json_md(soak) + "\n\n![soak](img/bench_soak.png)\n"
+        text += soak_md(soak) + "\n\n![soak](img/bench_soak.png)\n"
     return text
 
 

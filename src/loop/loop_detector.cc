@@ -101,14 +101,7 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp,
                "keyframe {}: timestamp {} must increase (previous keyframe: {})", input.id,
                input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp);
-  input.intrinsics.Check();
-  SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
-  SL_CHECK_MSG(input.image.type() == CV_8UC1,
-               "keyframe {}: image must be 8-bit grayscale (CV_8UC1)", input.id);
-  SL_CHECK_MSG((input.intrinsics.width == 0 || input.image.cols == input.intrinsics.width) &&
-                   (input.intrinsics.height == 0 || input.image.rows == input.intrinsics.height),
-               "keyframe {}: image size {}x{} does not match the intrinsics {}x{}", input.id,
-               input.image.cols, input.image.rows, input.intrinsics.width, input.intrinsics.height);
+  ValidateImageInput(input);
   if (input.world_from_cam) {
     const Sim3d& pose = *input.world_from_cam;
     SL_CHECK_MSG(pose.translation.allFinite() && pose.rotation.coeffs().allFinite() &&
@@ -118,10 +111,6 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
                  "keyframe {}: pose has a non-unit quaternion (norm {})", input.id,
                  pose.rotation.norm());
   }
-  SL_CHECK_MSG(
-      input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
-      "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),
-      input.mapped_pixels.size());
   // Without a pose under a geometric search strategy: "tracking lost", relocalise.
   const bool relocalize =
       !input.world_from_cam && options_.search.strategy != SearchStrategy::kGlobal;
@@ -337,6 +326,50 @@ void LoopDetector::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* re
   }
 }
 
+namespace {
+
+// Hamming matching of the query against each candidate record, then the candidates with at least
+// `min_matches` ranked by match count, then score, then `tie_key` (ascending). Both the in-session
+// search and the appearance-only pool matching use it, so they rank identically.
+struct RankedCandidate {
+  size_t entry;  // position in the candidate list
+  std::vector<DescriptorMatch> matches;
+  double score;
+  size_t tie_key;
+};
+struct CandidateRanking {
+  std::vector<RankedCandidate> ranked;
+  int best_count = 0;     // most matches of any candidate (also below min_matches)
+  size_t best_entry = 0;  // its position in the candidate list
+};
+
+template <typename RecordAt, typename TieKey>
+CandidateRanking RankCandidates(const KeyframeRecord& query, size_t num_candidates,
+                                RecordAt&& record_at, TieKey&& tie_key,
+                                const LoopDetector::Options& options) {
+  CandidateRanking out;
+  for (size_t e = 0; e < num_candidates; ++e) {
+    auto m = MatchDescriptors(query.descriptors, record_at(e).descriptors, options.match);
+    const int n = static_cast<int>(m.size());
+    if (n > out.best_count) {
+      out.best_count = n;
+      out.best_entry = e;
+    }
+    if (n < options.min_matches) continue;
+    const double s = MatchScore(m, options.match.max_distance);
+    out.ranked.push_back({e, std::move(m), s, tie_key(e)});
+  }
+  std::sort(out.ranked.begin(), out.ranked.end(),
+            [](const RankedCandidate& a, const RankedCandidate& b) {
+              if (a.matches.size() != b.matches.size()) return a.matches.size() > b.matches.size();
+              if (a.score != b.score) return a.score > b.score;
+              return a.tie_key < b.tie_key;
+            });
+  return out;
+}
+
+}  // namespace
+
 void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
                                       const std::vector<PoolEntry>& pool,
                                       LoopResult* result) const {
@@ -346,36 +379,16 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
     return;
   }
   Timer stage;
-  struct Ranked {
-    size_t entry;
-    std::vector<DescriptorMatch> matches;
-    double score;
-  };
-  std::vector<Ranked> ranked;
-  int best_count = 0;
-  size_t best_entry = 0;
-  for (size_t e = 0; e < pool.size(); ++e) {
-    auto m = MatchDescriptors(query.descriptors, pool[e].record->descriptors, options_.match);
-    const int n = static_cast<int>(m.size());
-    if (n > best_count) {
-      best_count = n;
-      best_entry = e;
-    }
-    if (n < options_.min_matches) continue;
-    const double s = MatchScore(m, options_.match.max_distance);
-    ranked.push_back({e, std::move(m), s});
-  }
-  std::sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
-    if (a.matches.size() != b.matches.size()) return a.matches.size() > b.matches.size();
-    if (a.score != b.score) return a.score > b.score;
-    return a.entry < b.entry;
-  });
+  const CandidateRanking ranking = RankCandidates(
+      query, pool.size(), [&](size_t e) -> const KeyframeRecord& { return *pool[e].record; },
+      [](size_t e) { return e; }, options_);
+  const auto& ranked = ranking.ranked;
   result->timings.match_ms += stage.ElapsedMs();
   if (ranked.empty()) {
     result->status = LoopStatus::kTooFewMatches;
-    result->match_id = pool[best_entry].record->id;
-    result->match_session = pool[best_entry].session;
-    result->matches = best_count;
+    result->match_id = pool[ranking.best_entry].record->id;
+    result->match_session = pool[ranking.best_entry].session;
+    result->matches = ranking.best_count;
     return;
   }
   stage.Restart();
@@ -383,7 +396,7 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   bool have_best = false;
   const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
   for (int r = 0; r < n_verify; ++r) {
-    const Ranked& cand = ranked[r];
+    const RankedCandidate& cand = ranked[r];
     const PoolEntry& entry = pool[cand.entry];
     VerificationResult v = VerifyPair(query, *entry.record, cand.matches, verify_);
     if (have_best && !v.success && v.inliers <= result->inliers) continue;
@@ -446,36 +459,18 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   }
   // 4. Hamming matching against every candidate; rank by match count, then score, then id.
   Timer stage;
-  struct Ranked {
-    size_t index;
-    std::vector<DescriptorMatch> matches;
-    double score;
-  };
-  std::vector<Ranked> ranked;
-  int best_count = 0;
-  int64_t best_id = -1;
-  for (int64_t id : candidates) {
-    const size_t ci = index_of_.at(id);
-    auto m = MatchDescriptors(query.descriptors, records_[ci].descriptors, options_.match);
-    const int n = static_cast<int>(m.size());
-    if (n > best_count) {
-      best_count = n;
-      best_id = id;
-    }
-    if (n < options_.min_matches) continue;
-    const double s = MatchScore(m, options_.match.max_distance);
-    ranked.push_back({ci, std::move(m), s});
-  }
-  std::sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
-    if (a.matches.size() != b.matches.size()) return a.matches.size() > b.matches.size();
-    if (a.score != b.score) return a.score > b.score;
-    return a.index < b.index;
-  });
+  std::vector<size_t> record_index(candidates.size());
+  for (size_t e = 0; e < candidates.size(); ++e) record_index[e] = index_of_.at(candidates[e]);
+  const CandidateRanking ranking = RankCandidates(
+      query, candidates.size(),
+      [&](size_t e) -> const KeyframeRecord& { return records_[record_index[e]]; },
+      [&](size_t e) { return record_index[e]; }, options_);
+  const auto& ranked = ranking.ranked;
   result->timings.match_ms = stage.ElapsedMs();
   if (ranked.empty()) {
     result->status = LoopStatus::kTooFewMatches;
-    result->match_id = best_id;
-    result->matches = best_count;
+    result->match_id = ranking.best_count > 0 ? candidates[ranking.best_entry] : -1;
+    result->matches = ranking.best_count;
     return;
   }
 
@@ -493,7 +488,8 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
   for (int r = 0; r < n_verify; ++r) {
     const auto& cand = ranked[r];
-    const KeyframeRecord& match = records_[cand.index];
+    const size_t match_index = record_index[cand.entry];
+    const KeyframeRecord& match = records_[match_index];
     VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
     LoopResult trial = *result;
     trial.match_id = match.id;
@@ -518,8 +514,8 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
         const bool confirmed =
             last_verified_ &&
             std::llabs(static_cast<int64_t>(last_verified_->second) -
-                       static_cast<int64_t>(cand.index)) <= options_.temporal_window;
-        last_verified_ = std::make_pair(query_index, cand.index);
+                       static_cast<int64_t>(match_index)) <= options_.temporal_window;
+        last_verified_ = std::make_pair(query_index, match_index);
         if (!confirmed) trial_status = LoopStatus::kRejectedByTemporal;
       }
     }

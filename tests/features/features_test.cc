@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sparseloop/features/informative_features.h"
+#include "sparseloop/synthetic/worlds.h"
 #include "test_util.h"
 
 namespace sparseloop {
@@ -198,15 +199,8 @@ cv::Mat KittiFrame(int index) {
                     cv::IMREAD_GRAYSCALE);
 }
 
-CameraIntrinsics KittiCamera() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 707.0912;
-  k.cx = 601.8873;
-  k.cy = 183.1104;
-  k.width = 1226;
-  k.height = 370;
-  return k;
-}
+// KITTI 04-12 cam0 (kitti07_first160), from the one table in the synthetic module.
+CameraIntrinsics KittiCamera() { return synthetic::KittiCam0Intrinsics(7); }
 
 // Number of kept features that differ (descriptor, position, angle or octave), or -1 when the
 // counts differ.

@@ -11,6 +11,7 @@
 
 #include "sparseloop/core/camera.h"
 #include "sparseloop/core/sim3.h"
+#include "sparseloop/synthetic/worlds.h"
 #include "test_util.h"
 
 namespace sparseloop::test {
@@ -71,15 +72,8 @@ inline std::vector<Rigid3d> ReadKittiPoses(const std::filesystem::path& path) {
   return poses;
 }
 
-inline CameraIntrinsics KittiIntrinsics() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 707.0912;
-  k.cx = 601.8873;
-  k.cy = 183.1104;
-  k.width = 1226;
-  k.height = 370;
-  return k;
-}
+// KITTI 04-12 cam0 (kitti07_first160), from the one table in the synthetic module.
+inline CameraIntrinsics KittiIntrinsics() { return synthetic::KittiCam0Intrinsics(7); }
 
 inline std::vector<cv::Mat> LoadKittiImages(int count) {
   std::vector<cv::Mat> images;
