@@ -1,5 +1,9 @@
 #include "sparseloop/runtime/background_optimizer.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 
@@ -105,6 +109,9 @@ void BackgroundOptimizer::Run() {
       const size_t num_loops = graph_.loops().size();
       PoseGraphSummary summary = graph_.Optimize(options_.solve, &interrupt_);
       ++num_solves_;
+#if defined(__GLIBC__)
+      if (options_.release_memory_after_solve) malloc_trim(0);
+#endif
       if (summary.status == PoseGraphStatus::kInterrupted) {
         ++num_interrupted_;
         continue;  // re-solve with the newer loops (warm start from the partial solution)

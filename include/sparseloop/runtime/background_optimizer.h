@@ -26,6 +26,11 @@ struct BackgroundOptimizerOptions {
   VertexType vertex_type = VertexType::kSim3;  // type of the graph the optimiser builds
   OdometryWeighting odometry;  // information of the odometry edges between pushed keyframes
   PoseGraphOptions solve;      // options of every solve
+  // After each solve, return the heap the solve freed (its Ceres problem, Jacobians and
+  // factorisation) to the operating system (glibc malloc_trim; no effect elsewhere). Without it
+  // the background thread's malloc arena keeps the high-water mark of the largest solve so far,
+  // which grows with the graph (docs/ROBUSTNESS.md, "Soak"). Costs well under a millisecond.
+  bool release_memory_after_solve = true;
   void Check() const;
 };
 
