@@ -37,6 +37,7 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(os.environ.get("SPARSELOOP_DATA", ROOT.parent / "shared" / "data"))
+RESULTS = ROOT / "bench" / "results"  # long runs recorded by scripts/soak
 
 # Ground-truth loop definition per world (see BENCHMARKS.md, "How loops are scored").
 #   revisit_m: a query frame has a GT revisit when an earlier frame is closer than this,
@@ -649,25 +650,37 @@ def plot_scaling(series, path):
     plt.close(fig)
 
 
-def plot_soak(csv_path, path):
-    with open(csv_path) as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
+def plot_soak(runs, path):
+    """runs: a CSV path, or a list of (CSV path, label). Two panels: RSS (current and peak, MiB)
+    and mean wall ms per keyframe, against the keyframes pushed."""
+    if not isinstance(runs, list):
+        runs = [(runs, None)]
+    fig, (ax_mem, ax_time) = plt.subplots(2, 1, figsize=(7.5, 6), sharex=True)
+    drawn = False
+    for csv_path, label in runs:
+        with open(csv_path) as f:
+            rows = list(csv.DictReader(f))
+        if not rows:
+            continue
+        drawn = True
+        kf = [float(r["keyframes"]) for r in rows]
+        tag = f"{label}: " if label else ""
+        line, = ax_mem.plot(kf, [float(r["rss_kib"]) / 1024 for r in rows], "-",
+                            label=f"{tag}RSS")
+        ax_mem.plot(kf, [float(r["peak_rss_kib"]) / 1024 for r in rows], ":",
+                    color=line.get_color(), label=f"{tag}peak RSS")
+        ax_time.plot(kf, [float(r["mean_ms"]) for r in rows], "-", color=line.get_color(),
+                     label=f"{tag}mean ms / keyframe")
+    if not drawn:
+        plt.close(fig)
         return False
-    keys = rows[0].keys()
-    kf = [float(r["keyframes"]) for r in rows]
-    fig, ax = plt.subplots(figsize=(6.5, 3.8))
-    rss_key = next((k for k in keys if "hwm" in k.lower() or "peak" in k.lower()), None)
-    ms_key = next((k for k in keys if "ms" in k.lower() and "mean" in k.lower()), None)
-    if rss_key:
-        ax.plot(kf, [float(r[rss_key]) for r in rows], "b-", label=rss_key)
-        ax.set_ylabel(rss_key, color="b")
-    if ms_key:
-        ax2 = ax.twinx()
-        ax2.plot(kf, [float(r[ms_key]) for r in rows], "r-", alpha=0.6, label=ms_key)
-        ax2.set_ylabel(ms_key, color="r")
-    ax.set_xlabel("keyframes pushed")
-    ax.grid(alpha=0.3)
+    ax_mem.set_ylabel("MiB")
+    ax_mem.grid(alpha=0.3)
+    ax_mem.legend(fontsize=7)
+    ax_time.set_ylabel("ms per keyframe (wall)")
+    ax_time.set_xlabel("keyframes pushed")
+    ax_time.grid(alpha=0.3)
+    ax_time.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -1068,8 +1081,8 @@ def soak_md(soak):
             "optimiser. Target (issue #7): RSS growth <= 2 KiB per keyframe beyond the fixed "
             f"overhead, over 100,000 keyframes: **{verdict}**; measured "
             f"{fmt(slope, 0)} B/keyframe over the second half of {soak.get('keyframes')} "
-            "keyframes" + ("" if full else " (the 100,000-keyframe run is part of the full mode, "
-                           "`scripts/benchmark`)") + ".\n\n" +
+            "keyframes" + ("" if full else " (the 100,000-keyframe runs: the full mode, and the "
+                           "record of `scripts/soak` below)") + ".\n\n" +
             table(["quantity", "value"], rows))
 
 
@@ -1080,6 +1093,21 @@ def external_section(res):
         text += f"Not measured ({soak['missing']}).\n"
     else:
         text += soak_md(soak) + "\n\n![soak](img/bench_soak.png)\n"
+    rec = res.get("soak_record")
+    if rec:
+        text += ("\n### Long run, 100,000 keyframes (recorded by `scripts/soak`)\n\n"
+                 "The 100,000-keyframe runs take ~20 minutes each, so this script renders the "
+                 "record `scripts/soak` wrote into bench/results/ (commit, date and conditions "
+                 "below) instead of re-running it in quick mode. Two runs: the default "
+                 "(`release_memory_after_solve`, the solver's freed heap returned to the system "
+                 "after each solve) and `--keep-heap`.\n\n")
+        for run in rec["runs"]:
+            label = ("default (release_memory_after_solve)" if run.get("release_memory_after_solve",
+                                                                       True)
+                     else "--keep-heap")
+            text += (f"**{label}**, commit {run.get('commit')}, {run.get('date')}, "
+                     f"{run.get('conditions')}:\n\n" + soak_md(run) + "\n\n")
+        text += "![soak, 100k keyframes](img/bench_soak_100k.png)\n"
     return text
 
 
@@ -1114,6 +1142,9 @@ def main():
     global SMOKE_FRAMES
     SMOKE_FRAMES = args.smoke
     res = run_all(r, args.quick)
+    rec = RESULTS / "soak_100k.json"
+    if rec.exists():
+        res["soak_record"] = json.loads(rec.read_text())
     res["machine"] = machine()
     res["command"] = " ".join(sys.argv)
     (r.out / "results.json").write_text(json.dumps(res, indent=1, default=str))
@@ -1128,6 +1159,10 @@ def main():
         plot_scaling(series, img / "bench_query_scaling.png")
     if (r.out / "soak.csv").exists():
         plot_soak(r.out / "soak.csv", img / "bench_soak.png")
+    if res.get("soak_record"):
+        runs = res["soak_record"]["runs"]
+        plot_soak([(RESULTS / r["csv"], "default" if r.get("release_memory_after_solve", True)
+                    else "--keep-heap") for r in runs], img / "bench_soak_100k.png")
     write_markdown(res, args, docs)
     print(f"wrote {docs / 'BENCHMARKS.md'} ({res['timings']['total_s']:.0f} s)")
 

@@ -55,10 +55,11 @@ TEST(RetrievalConfig, RejectsUnknownAndInvalid) {
   EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"neighbors": 40, "ef_search": 32}}})"), "");
 }
 
-// bench/configs/full_global.json and full_ann.json: parse strictly and mean what they say.
+// bench/configs/full_global.json, full_global_24.json and full_ann.json: parse strictly and mean
+// what they say (docs/BENCHMARKS.md, "Baselines").
 TEST(RetrievalConfig, BaselineConfigFiles) {
   const auto dir = test::SourceDir() / "bench" / "configs";
-  for (const char* name : {"full_global.json", "full_ann.json"}) {
+  for (const char* name : {"full_global.json", "full_global_24.json", "full_ann.json"}) {
     SCOPED_TRACE(name);
     PipelineOptions o;
     LoadConfigFile(dir / name, &o);
@@ -69,12 +70,20 @@ TEST(RetrievalConfig, BaselineConfigFiles) {
     EXPECT_EQ(d.search.strategy, SearchStrategy::kGlobal);
     EXPECT_FALSE(d.check_consistency);
     EXPECT_EQ(d.min_path_ratio, 0.0);
-    // The same verification as sparseloop's defaults.
+    // A classic detector's temporal window: the 50 most recent keyframes are no candidates.
+    EXPECT_EQ(d.search.exclude_recent, 50);
+    // The same verification as sparseloop's defaults; full_global_24 only lowers the inlier
+    // threshold to the absolute value sparseloop's default K gets (24).
     const LoopDetector::Options defaults;
-    EXPECT_EQ(d.search.exclude_recent, defaults.search.exclude_recent);
     EXPECT_EQ(d.min_matches, defaults.min_matches);
     EXPECT_EQ(d.max_verify, defaults.max_verify);
-    EXPECT_EQ(d.min_inlier_fraction_of_k, defaults.min_inlier_fraction_of_k);
+    if (std::string(name) == "full_global_24.json") {
+      EXPECT_EQ(d.EffectiveMinInliers(), defaults.EffectiveMinInliers());
+      EXPECT_EQ(d.EffectiveMinInliers(), 24);
+    } else {
+      EXPECT_EQ(d.min_inlier_fraction_of_k, defaults.min_inlier_fraction_of_k);
+      EXPECT_EQ(d.EffectiveMinInliers(), 80);
+    }
     EXPECT_EQ(d.verify.min_inliers, defaults.verify.min_inliers);
     EXPECT_EQ(d.verify.threshold_px, defaults.verify.threshold_px);
     EXPECT_EQ(d.verify.use_fundamental, defaults.verify.use_fundamental);
