@@ -103,15 +103,24 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--keyframes") keyframes = std::atol(next().c_str());
-    else if (a == "--k") k = std::atoi(next().c_str());
-    else if (a == "--period") period = std::atoi(next().c_str());
-    else if (a == "--check-every") check_every = std::atoi(next().c_str());
-    else if (a == "--window") window = std::atoi(next().c_str());
-    else if (a == "--out") out_path = next();
-    else if (a == "--no-optimizer") use_optimizer = false;
-    else if (a == "--rejection") rejection = next();
-    else if (a == "--keep-heap") keep_heap = true;
+    if (a == "--keyframes")
+      keyframes = std::atol(next().c_str());
+    else if (a == "--k")
+      k = std::atoi(next().c_str());
+    else if (a == "--period")
+      period = std::atoi(next().c_str());
+    else if (a == "--check-every")
+      check_every = std::atoi(next().c_str());
+    else if (a == "--window")
+      window = std::atoi(next().c_str());
+    else if (a == "--out")
+      out_path = next();
+    else if (a == "--no-optimizer")
+      use_optimizer = false;
+    else if (a == "--rejection")
+      rejection = next();
+    else if (a == "--keep-heap")
+      keep_heap = true;
     else {
       std::cerr << "usage: bench_soak [--keyframes N] [--k K] [--out CSV] [--period P] "
                    "[--check-every N] [--window W] [--no-optimizer] [--rejection pcm|none] "
@@ -144,8 +153,8 @@ int main(int argc, char** argv) {
 
   sparseloop::PipelineOptions popt;  // loop constraint weighting as `sparseloop run` does it
   sparseloop::BackgroundOptimizerOptions bopt;
-  bopt.solve.rejection = rejection == "pcm" ? sparseloop::OutlierRejection::kPcm
-                                            : sparseloop::OutlierRejection::kNone;
+  bopt.solve.rejection =
+      rejection == "pcm" ? sparseloop::OutlierRejection::kPcm : sparseloop::OutlierRejection::kNone;
   bopt.solve.max_iterations = 20;
   bopt.release_memory_after_solve = !keep_heap;
   std::unique_ptr<sparseloop::BackgroundOptimizer> optimizer;
@@ -163,9 +172,9 @@ int main(int argc, char** argv) {
     const double phase = 2.0 * M_PI * static_cast<double>(i % period) / period;
     const double lap = static_cast<double>(i / period);
     const double r = radius_m + 0.5 * std::sin(0.7 * lap);  // laps differ by up to 1 m
-    return Sim3d(1.0, q_nadir,
-                 Eigen::Vector3d(centre_m + r * std::cos(phase), centre_m + r * std::sin(phase),
-                                 altitude));
+    return Sim3d(
+        1.0, q_nadir,
+        Eigen::Vector3d(centre_m + r * std::cos(phase), centre_m + r * std::sin(phase), altitude));
   };
   const double step_m = 2.0 * M_PI * radius_m / period;
 
@@ -203,8 +212,8 @@ int main(int argc, char** argv) {
     if (r.detected()) {
       ++loops;
       if (optimizer)
-        optimizer->PushLoop(sparseloop::MakeLoopConstraint(r, pose, pose_of(r.match_id), step_m,
-                                                           popt));
+        optimizer->PushLoop(
+            sparseloop::MakeLoopConstraint(r, pose, pose_of(r.match_id), step_m, popt));
     }
     window_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -250,8 +259,7 @@ int main(int argc, char** argv) {
       keyframes, k, check_every, period, optimizer ? "true" : "false", rejection.c_str(),
       keep_heap ? "false" : "true", loops,
       static_cast<unsigned long>(optimizer ? optimizer->num_solves() : 0), slope,
-      static_cast<double>(record_bytes) / static_cast<double>(keyframes), rss_start_kib,
-      final_rss, peak, loop_seconds, total_seconds, 1000.0 * loop_seconds / keyframes,
-      out_path.c_str());
+      static_cast<double>(record_bytes) / static_cast<double>(keyframes), rss_start_kib, final_rss,
+      peak, loop_seconds, total_seconds, 1000.0 * loop_seconds / keyframes, out_path.c_str());
   return 0;
 }

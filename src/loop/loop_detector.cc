@@ -319,8 +319,7 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
 }
 
 void LoopDetector::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const {
-  if (result->detected() && match.has_pose && result->pose_kind != RelativePoseKind::kNone)
-  {
+  if (result->detected() && match.has_pose && result->pose_kind != RelativePoseKind::kNone) {
     result->world_from_query = match.world_from_cam * result->match_from_query;
     result->has_world_from_query = true;
   }
@@ -418,8 +417,7 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   result->timings.verify_ms += stage.ElapsedMs();
 }
 
-std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query,
-                                                   size_t query_index,
+std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
                                                    const std::vector<int64_t>& allowed) {
   // Keyframes the search area may return (index < query index - exclude_recent) enter the index;
   // the recent ones stay out, else they would absorb every query descriptor's nearest neighbours.

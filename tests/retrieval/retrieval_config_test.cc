@@ -88,7 +88,7 @@ TEST(RetrievalConfig, BaselineConfigFiles) {
     EXPECT_EQ(d.verify.threshold_px, defaults.verify.threshold_px);
     EXPECT_EQ(d.verify.use_fundamental, defaults.verify.use_fundamental);
     EXPECT_EQ(d.retrieval, std::string(name) == "full_ann.json" ? CandidateRetrieval::kAnn
-                                                                 : CandidateRetrieval::kBruteForce);
+                                                                : CandidateRetrieval::kBruteForce);
   }
 }
 

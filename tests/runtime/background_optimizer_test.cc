@@ -159,8 +159,8 @@ TEST(BackgroundOptimizer, StressAnyQueueCapacityGivesTheSameFinalEstimate) {
       }
       double max_diff = 0.0;
       for (size_t i = 0; i < d.raw.size(); ++i)
-        max_diff = std::max(max_diff,
-                            (g.Pose(int64_t(i)).translation - reference[i].translation).norm());
+        max_diff =
+            std::max(max_diff, (g.Pose(int64_t(i)).translation - reference[i].translation).norm());
       // Converged solves from different warm starts agree to the solver tolerance, not bitwise.
       EXPECT_LT(max_diff, 1e-3) << "capacity " << capacity << ", repeat " << repeat;
     }
