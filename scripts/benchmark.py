@@ -787,7 +787,7 @@ def targets_section(res):
     rows.append(["zero false loops accepted, default options, every experiment",
                  f"{false_acc} false accepted over {len(runs)} runs" +
                  (f" ({', '.join(worst[:4])})" if worst else ""),
-                 "met" if false_acc == 0 else "**missed**"])
+                 "met" if false_acc == 0 else "**missed**", ""])
     b = res["baselines"]
     fg = b.get("full_global")
     small_k = [(k, res["metrics"][res["baseline_sequence"]].get(f"k{k}", {}).get(
@@ -800,37 +800,57 @@ def targets_section(res):
             st = status(best_r, best_r >= fg_r)
         else:
             st = "not meaningful (the baseline recalls nothing here)"
+        why = ""
+        if "missed" in st:
+            fg24 = b.get("full_global_24", {})
+            why = ("K <= 32 features give at most K descriptor matches, and on these street frames "
+                   "fewer than the 12-inlier floor survive verification; the baseline's recall "
+                   "comes from 1,000 features at a 24-inlier threshold, paid for with "
+                   f"{fg24.get('false_detected', '?')} false detections that only the pose "
+                   "graph's outlier rejection removed. At the default K sparseloop recalls "
+                   f"{fmt(res['metrics'][res['baseline_sequence']].get('kdefault', {}).get('recall_100p_accepted', float('nan')))}"
+                   " with no false detection.")
         rows.append([f"street recall@100%P at K <= 32 >= full-global's ({res['baseline_sequence']})",
-                     f"best K <= 32: K={best_k}, {fmt(best_r)} vs best full-global {fmt(fg_r)}", st])
+                     f"best K <= 32: K={best_k}, {fmt(best_r)} vs best full-global {fmt(fg_r)}", st,
+                     why])
         sl = b["sparseloop_default"]
         ratio = fg["ms_total_median"] / sl["ms_total_median"]
         rows.append([f"time per keyframe >= 5x lower than full-global (at {fg['keyframes']} "
                      "keyframes, end to end)", f"{fmt(ratio, 1)}x (median total "
                      f"{fmt(sl['ms_total_median'])} vs {fmt(fg['ms_total_median'])} ms)",
-                     status(ratio, ratio >= 5)])
+                     status(ratio, ratio >= 5),
+                     "" if ratio >= 5 else "matching dominates at this map size"])
         for label in ("sparseloop_default", "sparseloop_k32", "sparseloop_k15"):
             if label in b:
                 r = fg["bytes_per_keyframe"] / b[label]["bytes_per_keyframe"]
+                budget = fg["bytes_per_keyframe"] / 50
                 rows.append([f"bytes per keyframe <= 1/50 of full-global ({label})",
                              f"1/{fmt(r, 1)} ({fmt(b[label]['bytes_per_keyframe'], 0)} vs "
                              f"{fmt(fg['bytes_per_keyframe'], 0)} B)",
-                             "met" if r >= 50 else "**missed**"])
+                             "met" if r >= 50 else "**missed**",
+                             "" if r >= 50 else
+                             f"1/50 is {fmt(budget, 0)} B; a record costs 32 B descriptor + 12 B "
+                             "keypoint + 4 B depth per feature plus ~180 B fixed (Sim(3) raw pose, "
+                             "ids, focal, three vector headers), so even K = 15 is over; "
+                             "a packed record (one buffer, half-precision keypoints) would fit"])
     else:
-        rows.append(["baselines", "bench/configs/full_global.json missing", "**not measured**"])
+        rows.append(["baselines", "bench/configs/full_global.json missing", "**not measured**",
+                     ""])
     series = scaling_series(res)
     for name, pts in series.items():
         if any(w in name for w in ("PaperArea", "QueryStoredKeyframes", "BM_Query/paper")):
             growth = pts[-1][1] / pts[0][1]
             rows.append([f"query time flat from {pts[0][0]} to {pts[-1][0]} keyframes ({name})",
                          f"x{fmt(growth)} ({fmt(pts[0][1], 3)} -> {fmt(pts[-1][1], 3)} ms)",
-                         "met" if growth < 2 else "**missed**"])
+                         "met" if growth < 2 else "**missed**", ""])
     for seq, variants in res["metrics"].items():
         if seq.startswith("street") and "kdefault" in variants:
             m = variants["kdefault"]
             rows.append([f"corrected KITTI t_err < 1.5 % ({seq})",
                          f"{fmt(m['corrected_t_err_pct'])} % (raw {fmt(m['raw_t_err_pct'])} %)",
-                         status(m["corrected_t_err_pct"], m["corrected_t_err_pct"] < 1.5)])
-    return "\n## Targets (issue #6)\n\n" + table(["target", "measured", "status"], rows) + "\n"
+                         status(m["corrected_t_err_pct"], m["corrected_t_err_pct"] < 1.5), ""])
+    return ("\n## Targets (issue #6)\n\n" +
+            table(["target", "measured", "status", "why, where missed"], rows) + "\n")
 
 
 def scoring_section():
@@ -1043,7 +1063,13 @@ def posegraph_md(pa):
                          status(f.get("ratio", float("nan")), f.get("ratio", 9) <= 0.40), pct(p)])
         text += ("Sim(3)-aligned ATE in metres (and as % of raw). Targets (issue #4): <= 30 % of "
                  "raw with true loops, <= 40 % with 20 % false loops; plain least squares on the "
-                 "same graph for comparison.\n\n" +
+                 "same graph for comparison. Where a target is missed, why (docs/POSEGRAPH.md has "
+                 "the diagnostics): KITTI 09 revisits only at its end, where the raw trajectory "
+                 "already closes within a few metres, so its loops observe almost none of the "
+                 "drift inside the loop; on EuRoC the raw VIO's error is mostly local (per-step "
+                 "translation errors of 9-17 %, a per-window Sim(3) alignment already leaves "
+                 "13-28 % of the ATE), which odometry edges reproduce and loops between revisits "
+                 "cannot remove. Noise-free loops give the same ratios.\n\n" +
                  table(["sequence", "keyframes", "loops", "raw ATE", "true loops", "<= 30 %",
                         "20 % false, PCM", "<= 40 %", "20 % false, plain LS"], rows) + "\n")
     graphs = pa.get("graphs", {})
