@@ -99,11 +99,10 @@ BENCHMARK(BM_PoseGraphSim3WarmNewLoop)
 void EdgeJacobian(benchmark::State& state, bool analytic) {
   const Sim3d a = Sim3d::Exp((Vector7d() << 1, 2, 3, 0.1, 0.2, 0.3, 0.05).finished());
   const Sim3d b = Sim3d::Exp((Vector7d() << 1.5, 2, 3, 0.1, 0.25, 0.3, 0.06).finished());
-  const Sim3d z = Sim3d::Exp((Vector7d() << 0.01, 0, 0, 0, 0.01, 0, 0.001).finished()) *
-                  a.Inverse() * b;
-  std::unique_ptr<ceres::CostFunction> cost(
-      analytic ? Sim3EdgeCost::Create(z, Matrix7d::Identity())
-               : EdgeError::Create(z, Matrix7d::Identity()));
+  const Sim3d z =
+      Sim3d::Exp((Vector7d() << 0.01, 0, 0, 0, 0.01, 0, 0.001).finished()) * a.Inverse() * b;
+  std::unique_ptr<ceres::CostFunction> cost(analytic ? Sim3EdgeCost::Create(z, Matrix7d::Identity())
+                                                     : EdgeError::Create(z, Matrix7d::Identity()));
   Vector8d av = a.ToVector(), bv = b.ToVector();
   const double* params[2] = {av.data(), bv.data()};
   double r[7], ja[56], jb[56];

@@ -96,7 +96,8 @@ void BM_SparseloopPaperArea(benchmark::State& state) {
     const SearchAreaResult res = area.Query(q);
     int best = 0;
     for (int64_t id : res.candidates) {
-      const auto m = MatchDescriptors(pool[q % kPool].descriptors, pool[id % kPool].descriptors, mo);
+      const auto m =
+          MatchDescriptors(pool[q % kPool].descriptors, pool[id % kPool].descriptors, mo);
       best = std::max(best, static_cast<int>(m.size()));
     }
     benchmark::DoNotOptimize(best);
@@ -127,7 +128,8 @@ void BM_FullGlobal(benchmark::State& state) {
     Timer t;
     int best = 0;
     for (int64_t id = 0; id < matched; ++id) {
-      const auto m = MatchDescriptors(pool[n % kPool].descriptors, pool[id % kPool].descriptors, mo);
+      const auto m =
+          MatchDescriptors(pool[n % kPool].descriptors, pool[id % kPool].descriptors, mo);
       best = std::max(best, static_cast<int>(m.size()));
     }
     benchmark::DoNotOptimize(best);

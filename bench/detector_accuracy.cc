@@ -89,15 +89,14 @@ json CastleLoop(const std::vector<Frame>& frames) {
     in.world_from_cam = Sim3d(frames[i].world_from_cam);
     const LoopResult r = detector.Process(in);
     if (!r.detected()) continue;
-    const Rigid3d gt =
-        frames[r.match_id - 1].world_from_cam.Inverse() * frames[i].world_from_cam;
-    loops.push_back({{"query", r.query_id},
-                     {"match", r.match_id},
-                     {"inliers", r.inliers},
-                     {"rotation_error_deg", Deg(RotationAngle(gt.rotation,
-                                                              r.match_from_query.rotation))},
-                     {"translation_direction_error_deg",
-                      AngleBetween(gt.translation, r.match_from_query.translation)}});
+    const Rigid3d gt = frames[r.match_id - 1].world_from_cam.Inverse() * frames[i].world_from_cam;
+    loops.push_back(
+        {{"query", r.query_id},
+         {"match", r.match_id},
+         {"inliers", r.inliers},
+         {"rotation_error_deg", Deg(RotationAngle(gt.rotation, r.match_from_query.rotation))},
+         {"translation_direction_error_deg",
+          AngleBetween(gt.translation, r.match_from_query.translation)}});
   }
   out["loops"] = loops;
   out["ring_closure_found"] = loops.size() == 1 && loops[0]["query"] == 29 &&
@@ -149,8 +148,8 @@ json Rtabmap(const fs::path& root, bool quick) {
   for (int i = 1; i <= 84; ++i) {
     images.push_back(cv::imread((root / "samples" / (std::to_string(i) + ".jpg")).string(),
                                 cv::IMREAD_GRAYSCALE));
-    if (images.back().empty()) throw std::runtime_error("cannot read rtabmap image " +
-                                                        std::to_string(i));
+    if (images.back().empty())
+      throw std::runtime_error("cannot read rtabmap image " + std::to_string(i));
   }
   std::set<std::pair<int, int>> gt;
   std::set<int> queries_with_gt;
@@ -166,8 +165,8 @@ json Rtabmap(const fs::path& root, bool quick) {
       }
     }
   }
-  const std::vector<int> ks = quick ? std::vector<int>{15, 50}
-                                    : std::vector<int>{8, 10, 12, 15, 18, 32, 50, 64, 100, 300};
+  const std::vector<int> ks =
+      quick ? std::vector<int>{15, 50} : std::vector<int>{8, 10, 12, 15, 18, 32, 50, 64, 100, 300};
   json out;
   out["queries_with_gt"] = static_cast<int>(queries_with_gt.size());
   for (auto ranking :
@@ -234,9 +233,9 @@ json Euroc(const fs::path& root) {
       {0.39266, -0.590667, -0.58023, -0.400326, -0.345638, -0.501712, 1.320441}};
   std::vector<Rigid3d> world_from_cam;
   for (const auto& r : g)
-    world_from_cam.push_back(Rigid3d(Eigen::Quaterniond(r[0], r[1], r[2], r[3]),
-                                     Eigen::Vector3d(r[4], r[5], r[6])) *
-                             body_from_cam);
+    world_from_cam.push_back(
+        Rigid3d(Eigen::Quaterniond(r[0], r[1], r[2], r[3]), Eigen::Vector3d(r[4], r[5], r[6])) *
+        body_from_cam);
   CameraIntrinsics k;
   k.fx = 458.654;
   k.fy = 457.296;
@@ -261,20 +260,21 @@ json Euroc(const fs::path& root) {
       in.timestamp = static_cast<double>(i);
       in.image = cv::imread((root / ("left_img_" + std::to_string(i) + ".png")).string(),
                             cv::IMREAD_GRAYSCALE);
-      if (in.image.empty()) throw std::runtime_error("cannot read euroc image " + std::to_string(i));
+      if (in.image.empty())
+        throw std::runtime_error("cannot read euroc image " + std::to_string(i));
       in.intrinsics = k;
       in.world_from_cam = Sim3d(world_from_cam[i]);
       r = detector.Process(in);
     }
     const Rigid3d rel = world_from_cam[m].Inverse() * world_from_cam[q];
-    out.push_back({{"pair", {m, q}},
-                   {"status", ToString(r.status)},
-                   {"inliers", r.inliers},
-                   {"matches", r.matches},
-                   {"rotation_error_deg", Deg(RotationAngle(rel.rotation,
-                                                            r.match_from_query.rotation))},
-                   {"translation_direction_error_deg",
-                    AngleBetween(rel.translation, r.match_from_query.translation)}});
+    out.push_back(
+        {{"pair", {m, q}},
+         {"status", ToString(r.status)},
+         {"inliers", r.inliers},
+         {"matches", r.matches},
+         {"rotation_error_deg", Deg(RotationAngle(rel.rotation, r.match_from_query.rotation))},
+         {"translation_direction_error_deg",
+          AngleBetween(rel.translation, r.match_from_query.translation)}});
   }
   return out;
 }

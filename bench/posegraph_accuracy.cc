@@ -100,12 +100,11 @@ int Main(int argc, char** argv) {
       return 2;
     }
   }
-  for (const char* needed : {"vslam_trajectories/kitti09_10/example_0/09.txt",
-                             "vslam_trajectories/euroc/MH_01/vio_mono_estimate.txt",
-                             "kitti_gt_poses/09.txt", "pose_graphs/parking-garage.g2o",
-                             "pose_graphs/sphere_bignoise_vertex3.g2o",
-                             "pose_graphs/sphere2500.txt",
-                             "pose_graphs/sphere2500_groundtruth.txt"}) {
+  for (const char* needed :
+       {"vslam_trajectories/kitti09_10/example_0/09.txt",
+        "vslam_trajectories/euroc/MH_01/vio_mono_estimate.txt", "kitti_gt_poses/09.txt",
+        "pose_graphs/parking-garage.g2o", "pose_graphs/sphere_bignoise_vertex3.g2o",
+        "pose_graphs/sphere2500.txt", "pose_graphs/sphere2500_groundtruth.txt"}) {
     if (!std::filesystem::exists(data / needed)) {
       std::cerr << "posegraph_accuracy: real data not found: " << (data / needed)
                 << "\n  pass --data DIR or set SPARSELOOP_DATA to the shared data folder\n";
@@ -126,8 +125,8 @@ int Main(int argc, char** argv) {
   }
   {
     PoseGraph g = ReadG2o(data / "pose_graphs/sphere_bignoise_vertex3.g2o");
-    out += ", \"sphere_bignoise_vertex3.g2o\": {" + SummaryJson(g.Optimize(PlainOptions(300))) +
-           "}";
+    out +=
+        ", \"sphere_bignoise_vertex3.g2o\": {" + SummaryJson(g.Optimize(PlainOptions(300))) + "}";
   }
   {
     PoseGraph g = ReadG2o(data / "pose_graphs/sphere2500.txt");

@@ -38,8 +38,8 @@ int RunBench(int argc, char** argv) {
   }
   // The build folder is the parent of this executable's bin/ folder.
   const fs::path build = fs::read_symlink("/proc/self/exe").parent_path().parent_path();
-  std::vector<std::string> args = {python, script.string(), "--build", build.string(), "--jobs",
-                                   std::to_string(jobs)};
+  std::vector<std::string> args = {python,         script.string(), "--build",
+                                   build.string(), "--jobs",        std::to_string(jobs)};
   if (quick) args.emplace_back("--quick");
   if (reuse) args.emplace_back("--reuse");
   if (!out.empty()) args.insert(args.end(), {"--out", out});

@@ -26,8 +26,8 @@
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/map/map_database.h"
-#include "sparseloop/pipeline/map_records.h"
 #include "sparseloop/pipeline/config.h"
+#include "sparseloop/pipeline/map_records.h"
 
 namespace sparseloop::cli {
 
@@ -196,9 +196,8 @@ int RunDetect(int argc, char** argv) {
                      [](const LoopResult& l) { return l.match_session != 0; })},
   };
   if (map) {
-    summary["map"] = {{"path", map_path},
-                      {"session", map_session},
-                      {"prior_keyframes", prior_keyframes}};
+    summary["map"] = {
+        {"path", map_path}, {"session", map_session}, {"prior_keyframes", prior_keyframes}};
   }
   summary["config"] = ConfigToJson([&] {
     PipelineOptions p = pipeline_options;
@@ -211,8 +210,7 @@ int RunDetect(int argc, char** argv) {
                            dataset.frames.size(), loops.size(),
                            double(bytes) / dataset.frames.size(), wall_ms / dataset.frames.size());
   for (const auto& l : loops)
-    std::cout << fmt::format("loop {} -> {}{}  inliers {}  score {:.3f}\n", l.query_id,
-                             l.match_id,
+    std::cout << fmt::format("loop {} -> {}{}  inliers {}  score {:.3f}\n", l.query_id, l.match_id,
                              l.match_session ? fmt::format(" (session {})", l.match_session) : "",
                              l.inliers, l.score);
   return 0;

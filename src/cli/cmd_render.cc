@@ -86,8 +86,9 @@ int RunRender(int argc, char** argv) {
   app.add_option("--photometric", photometric_scale,
                  "multiplies the exposure/gamma change amplitudes")
       ->capture_default_str();
-  app.add_flag("--poses-only", poses_only,
-               "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
+  app.add_flag(
+      "--poses-only", poses_only,
+      "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
   app.add_option("--out", out_dir, "output folder")->required();
   Parse(app, argc, argv);
 

@@ -49,7 +49,8 @@ class ProgressLine {
   double last_s_ = -1.0;
 };
 
-// loops.csv: query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,scale,
+// loops.csv:
+// query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,scale,
 // match_session (accepted / correct are empty when unknown, including rows past the end of
 // `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session).
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,

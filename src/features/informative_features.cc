@@ -88,7 +88,8 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
   const int rows = gray.rows;
   const int cols = gray.cols;
   // Gradient magnitude (central differences, L2), clamped to [0, 255]. |gx|, |gy| <= 127, so
-  // floor(sqrt(gx^2 + gy^2)) comes from a table (exactly the float sqrt; 4x faster than calling it).
+  // floor(sqrt(gx^2 + gy^2)) comes from a table (exactly the float sqrt; 4x faster than calling
+  // it).
   static const std::vector<uint8_t> kSqrt = [] {
     std::vector<uint8_t> t(2 * 127 * 127 + 1);
     for (size_t i = 0; i < t.size(); ++i)

@@ -241,7 +241,8 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
     const KeyframeRecord& record = detector.record(frame.index);
     bytes += record.Bytes();
     if (map) map->PutKeyframe(ToStoredKeyframe(record, session));
-    if (r.detected()) (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
+    if (r.detected())
+      (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
     result.frame_results.push_back(std::move(r));
     if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
   }

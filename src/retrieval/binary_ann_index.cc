@@ -13,7 +13,7 @@ namespace sparseloop {
 namespace {
 
 using FaissIdx = faiss::IndexBinary::idx_t;  // FAISS 1.7.3 (bookworm) label type
-constexpr int kBits = 256;  // ORB descriptor length
+constexpr int kBits = 256;                   // ORB descriptor length
 static_assert(sizeof(Descriptor) == kBits / 8, "Descriptor must be 32 contiguous bytes");
 
 // Sets the OpenMP thread count of the calling thread for FAISS and restores the caller's value.
@@ -77,8 +77,9 @@ void BinaryAnnIndex::Add(int64_t keyframe_id, const std::vector<Descriptor>& des
   }
   keyframe_ids_.push_back(keyframe_id);
   block_start_.push_back(block_start_.back() + static_cast<int64_t>(descriptors.size()));
-  SL_CHECK_MSG(impl_->index.ntotal == block_start_.back(), "BinaryAnnIndex: FAISS holds {} codes, expected {}",
-               impl_->index.ntotal, block_start_.back());
+  SL_CHECK_MSG(impl_->index.ntotal == block_start_.back(),
+               "BinaryAnnIndex: FAISS holds {} codes, expected {}", impl_->index.ntotal,
+               block_start_.back());
 }
 
 std::vector<std::vector<DescriptorNeighbor>> BinaryAnnIndex::Search(
@@ -91,8 +92,8 @@ std::vector<std::vector<DescriptorNeighbor>> BinaryAnnIndex::Search(
   std::vector<FaissIdx> labels(query.size() * k);
   {
     ScopedOmpThreads threads(options_.num_threads);
-    impl_->index.search(static_cast<FaissIdx>(query.size()), Codes(query), k,
-                        distances.data(), labels.data());
+    impl_->index.search(static_cast<FaissIdx>(query.size()), Codes(query), k, distances.data(),
+                        labels.data());
   }
   for (size_t q = 0; q < query.size(); ++q) {
     auto& row = out[q];
@@ -103,8 +104,8 @@ std::vector<std::vector<DescriptorNeighbor>> BinaryAnnIndex::Search(
       // The keyframe whose block [block_start_[i], block_start_[i + 1]) holds the label.
       const auto it = std::upper_bound(block_start_.begin(), block_start_.end(), label);
       const size_t i = static_cast<size_t>(it - block_start_.begin()) - 1;
-      row.push_back({keyframe_ids_[i], static_cast<int>(label - block_start_[i]),
-                     distances[q * k + j]});
+      row.push_back(
+          {keyframe_ids_[i], static_cast<int>(label - block_start_[i]), distances[q * k + j]});
     }
     std::stable_sort(row.begin(), row.end(),
                      [](const DescriptorNeighbor& a, const DescriptorNeighbor& b) {

@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
 #include <gtest/gtest.h>
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_runner.h"
@@ -99,10 +99,9 @@ TEST(CliDetectMap, CorruptMapFileExits2WithItsName) {
     std::ofstream out(map, std::ios::binary);
     for (int i = 0; i < 512; ++i) out << "this is not a sparseloop map ";
   }
-  const CliResult r =
-      RunCli({"detect", "--dataset", "images:" + (DataDir() / "castle_p30_768" / "images").string(),
-              "--intrinsics", kCastleIntrinsics, "--map", map.string(), "--out",
-              (dir / "out").string()});
+  const CliResult r = RunCli(
+      {"detect", "--dataset", "images:" + (DataDir() / "castle_p30_768" / "images").string(),
+       "--intrinsics", kCastleIntrinsics, "--map", map.string(), "--out", (dir / "out").string()});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find(map.string()), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("not a database"), std::string::npos) << r.err;

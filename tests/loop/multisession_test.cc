@@ -62,7 +62,8 @@ class MultiSession : public ::testing::Test {
     const Trajectory a = synthetic::MakeFlightTrajectory(f);
     session1_ = new std::vector<Frame>();
     session2_ = new std::vector<Frame>();
-    for (size_t i = 0; i < a.poses.size(); ++i) session1_->push_back(Render(a.poses[i].world_from_cam, i));
+    for (size_t i = 0; i < a.poses.size(); ++i)
+      session1_->push_back(Render(a.poses[i].world_from_cam, i));
     // Session 2: same circuit shifted by (6, -4) m, starting 20 frames later along it.
     for (size_t k = 0; k < a.poses.size(); ++k) {
       Rigid3d p = a.poses[(k + 20) % a.poses.size()].world_from_cam;
@@ -141,7 +142,8 @@ class MultiSession : public ::testing::Test {
 
   // Another Sim(3) frame for session 2: rotated 40 deg about an oblique axis, moved, scale 0.3.
   static Sim3d Session2Frame() {
-    return Sim3d(0.3, Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+    return Sim3d(0.3,
+                 Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
                  Eigen::Vector3d(100.0, -50.0, 7.0));
   }
 
@@ -184,7 +186,7 @@ TEST_F(MultiSession, AddPriorKeyframesRejectsBadInput) {
   LoopDetector d(Options());
   d.Process(Input((*session1_)[0], 0, Sim3d(), true, false));
   KeyframeRecord r = d.record(0);
-  EXPECT_THROW(d.AddPriorKeyframes(0, {r}), std::invalid_argument);  // 0 = current session
+  EXPECT_THROW(d.AddPriorKeyframes(0, {r}), std::invalid_argument);     // 0 = current session
   EXPECT_THROW(d.AddPriorKeyframes(2, {r, r}), std::invalid_argument);  // duplicate id
   KeyframeRecord no_focal = r;
   no_focal.focal_px = 0.0f;
@@ -206,9 +208,8 @@ TEST_F(MultiSession, SecondSessionInAnotherSim3FrameFindsCorrectCrossSessionLoop
     if (!r.detected() || r.match_session == 0) continue;
     ASSERT_EQ(r.match_session, 1);
     ++cross;
-    const double d = ((*session2_)[k].gt.translation -
-                      (*session1_)[size_t(r.match_id)].gt.translation)
-                         .norm();
+    const double d =
+        ((*session2_)[k].gt.translation - (*session1_)[size_t(r.match_id)].gt.translation).norm();
     if (d > kTrueLoopDistance) ++wrong;
     EXPECT_LE(d, kTrueLoopDistance) << "query " << k << " -> session 1 keyframe " << r.match_id;
     // Orientation in session 1's frame (= GT frame here) is measured by the essential matrix.
@@ -261,7 +262,8 @@ TEST_F(MultiSession, NoCrossSessionLoopsWhenDisabledOrUnrelated) {
   }
   disabled.AddPriorKeyframes(1, [&] {
     std::vector<KeyframeRecord> v;
-    for (size_t i = 0; i < session1_->size(); ++i) v.push_back(detector->prior_record(1, int64_t(i)));
+    for (size_t i = 0; i < session1_->size(); ++i)
+      v.push_back(detector->prior_record(1, int64_t(i)));
     return v;
   }());
   int cross_disabled = 0, cross_unrelated = 0;
@@ -289,7 +291,8 @@ TEST_F(MultiSession, PoselessKeyframesRelocaliseInTheCurrentSession) {
   const int64_t first_lost = int64_t(session1_->size());
   for (size_t k = 0; k < 10; ++k) {
     const Frame& f = (*session2_)[k];
-    const LoopResult r = detector.Process(Input(f, first_lost + int64_t(k), raw_from_gt, false, true));
+    const LoopResult r =
+        detector.Process(Input(f, first_lost + int64_t(k), raw_from_gt, false, true));
     EXPECT_TRUE(r.relocalization);
     if (!r.detected()) continue;
     ++relocalised;
@@ -326,8 +329,9 @@ TEST_F(MultiSession, RelocalizeAgainstPriorSessionGivesPoseInItsFrame) {
     if (!r.detected()) continue;
     ++relocalised;
     EXPECT_EQ(r.match_session, 1);
-    EXPECT_LE((( *session2_)[k].gt.translation - (*session1_)[size_t(r.match_id)].gt.translation).norm(),
-              kTrueLoopDistance);
+    EXPECT_LE(
+        ((*session2_)[k].gt.translation - (*session1_)[size_t(r.match_id)].gt.translation).norm(),
+        kTrueLoopDistance);
     EXPECT_EQ(r.pose_kind, RelativePoseKind::kSim3);
     ASSERT_TRUE(r.has_world_from_query);
     max_position_err = std::max(

@@ -21,10 +21,8 @@ struct Expected {
 };
 constexpr Expected kExpected[] = {
     {"kitti09", 1.10, 1.10},  // one revisit, at the end; the raw already closes it within 4 m
-    {"euroc_MH_01", 0.30, 0.40},
-    {"euroc_MH_03", 0.45, 0.45},
-    {"euroc_MH_05", 0.63, 0.65},
-    {"euroc_V2_01", 0.73, 0.75},
+    {"euroc_MH_01", 0.30, 0.40}, {"euroc_MH_03", 0.45, 0.45},
+    {"euroc_MH_05", 0.63, 0.65}, {"euroc_V2_01", 0.73, 0.75},
 };
 
 TEST(DriftData, LoopsCorrectRealDriftAndFalseLoopsAreRejected) {
@@ -59,7 +57,8 @@ TEST(DriftData, LoopsCorrectRealDriftAndFalseLoopsAreRejected) {
     size_t accepted_false = 0;
     std::vector<bool> rejected(dirty.loops.size(), false);
     for (size_t k : r_dirty.summary.rejected_loops) rejected[k] = true;
-    for (size_t k = 0; k < dirty.loops.size(); ++k) accepted_false += dirty.is_false[k] && !rejected[k];
+    for (size_t k = 0; k < dirty.loops.size(); ++k)
+      accepted_false += dirty.is_false[k] && !rejected[k];
     std::cerr << fmt::format(
         "{:12s} keyframes {:4d} loops {:3d}: raw ATE {:.3f} | loops {:.3f} ({:.0f}%) | noise-free "
         "loops {:.3f} ({:.0f}%) | 20% false: default {:.3f} ({:.0f}%, rejected {}, false accepted "
@@ -97,7 +96,8 @@ TEST(DriftData, Kitti09LoopGapIsSmallerThanItsAte) {
   const double raw_ate = test::AlignedAte(c.raw, c.gt);
   for (const LoopConstraint& l : loops.loops) {
     // Loop gap: measured vs raw relative pose, in GT metres.
-    const Sim3d gap = l.match_from_query.Inverse() * c.raw[l.match_id].Inverse() * c.raw[l.query_id];
+    const Sim3d gap =
+        l.match_from_query.Inverse() * c.raw[l.match_id].Inverse() * c.raw[l.query_id];
     const double gap_m = gap.translation.norm() / lambda[l.match_id];
     EXPECT_LT(gap_m, 0.6 * raw_ate) << l.query_id << "-" << l.match_id;
     EXPECT_GE(l.query_id, static_cast<int64_t>(c.raw.size()) - 10);  // only at the end

@@ -21,7 +21,7 @@
 namespace sparseloop::test {
 
 struct LoopHarnessOptions {
-  double distance = 5.0;      // GT metres
+  double distance = 5.0;  // GT metres
   // GT relative rotation below which the two keyframes see the same scene (rad); a place is only
   // recognised when the camera looks the same way.
   double max_rotation_rad = 3.2;
@@ -91,9 +91,8 @@ inline HarnessLoops MakeHarnessLoops(const std::vector<Sim3d>& raw, const std::v
     double best_d = o.distance;
     for (int64_t m = 0; m + o.min_gap <= q; ++m) {
       const double d = (gt[q].translation - gt[m].translation).norm();
-      if (d < best_d &&
-          Eigen::AngleAxisd(gt[m].rotation.inverse() * gt[q].rotation).angle() <
-              o.max_rotation_rad) {
+      if (d < best_d && Eigen::AngleAxisd(gt[m].rotation.inverse() * gt[q].rotation).angle() <
+                            o.max_rotation_rad) {
         best_d = d;
         best = m;
       }

@@ -53,9 +53,9 @@ const char* ToString(LoopStatus status);
 // How the keyframes to match and verify are chosen among the search area's candidates.
 enum class CandidateRetrieval {
   kBruteForce,  // Hamming-match the query's K descriptors against every candidate (the paper)
-  kAnn,  // one ANN index over all stored descriptors; each query descriptor votes for the
-         // keyframes of its nearest stored descriptors; the top-voted candidates are matched
-         // and verified (how vocabulary-free detectors scale; the `full-ann` baseline)
+  kAnn,         // one ANN index over all stored descriptors; each query descriptor votes for the
+                // keyframes of its nearest stored descriptors; the top-voted candidates are matched
+                // and verified (how vocabulary-free detectors scale; the `full-ann` baseline)
 };
 const char* ToString(CandidateRetrieval retrieval);
 // "brute_force" | "ann"; throws std::invalid_argument otherwise.
@@ -85,14 +85,14 @@ struct LoopResult {
   // Session of match_id: 0 = this detector's own keyframes (the current session); > 0 = an
   // earlier session loaded with AddPriorKeyframes (its id, e.g. the map's session id).
   int64_t match_session = 0;
-  // Relocalisation / multi-session output (has_world_from_query), set when detected, the matched keyframe has a raw pose
-  // and pose_kind != kNone: the query camera in the MATCHED keyframe's world frame,
-  // world_from_matched * match_from_query. Units are those of the matched session. Scale caveat:
-  // with kSE3UnitTranslation (no depths, monocular) the query sits at unit distance (in the
-  // matched camera's frame, i.e. 1 / scale of world_from_matched in world units) along the
+  // Relocalisation / multi-session output (has_world_from_query), set when detected, the matched
+  // keyframe has a raw pose and pose_kind != kNone: the query camera in the MATCHED keyframe's
+  // world frame, world_from_matched * match_from_query. Units are those of the matched session.
+  // Scale caveat: with kSE3UnitTranslation (no depths, monocular) the query sits at unit distance
+  // (in the matched camera's frame, i.e. 1 / scale of world_from_matched in world units) along the
   // verified direction: the orientation is right, the position is only a direction.
   bool has_world_from_query = false;
-  Sim3d world_from_query;  // valid when has_world_from_query
+  Sim3d world_from_query;       // valid when has_world_from_query
   bool relocalization = false;  // the query had no pose (or came through Relocalize())
   StageTimings timings;
   bool detected() const { return status == LoopStatus::kDetected; }
@@ -140,7 +140,7 @@ class LoopDetector {
     // entry) and relocalised against every stored keyframe with a pose, all sessions. false:
     // such a keyframe is rejected with std::invalid_argument (the behaviour before relocalisation).
     bool relocalize_without_pose = true;
-    uint64_t seed = 42;       // copied into verify.seed
+    uint64_t seed = 42;  // copied into verify.seed
     void Check() const;
     // The inlier threshold actually applied: max(verify.min_inliers, ceil(fraction * K)).
     int EffectiveMinInliers() const;

@@ -25,9 +25,9 @@ enum class RelativePoseKind {
 const char* ToString(RelativePoseKind kind);
 
 struct VerifyOptions {
-  double threshold_px = 2.0;      // RANSAC inlier threshold, pixels (divided by the focal length)
-  double confidence = 0.999;      // RANSAC confidence, probability in (0, 1)
-  int max_iterations = 1000;      // RANSAC iterations, count
+  double threshold_px = 2.0;  // RANSAC inlier threshold, pixels (divided by the focal length)
+  double confidence = 0.999;  // RANSAC confidence, probability in (0, 1)
+  int max_iterations = 1000;  // RANSAC iterations, count
   // Essential matrix: rounds of local optimisation after RANSAC (refine R, t on the inliers by
   // Levenberg-Marquardt, re-select inliers among all matches), count >= 0 (0 = RANSAC model only).
   int local_optimization_rounds = 5;

@@ -57,8 +57,8 @@ struct PipelineResult {
   // Loops whose match is a keyframe of an earlier map session (LoopResult::match_session > 0).
   // Not in the pose graph (their world frame differs); stored in the map with accepted = 0.
   std::vector<LoopResult> cross_session_loops;
-  std::vector<int64_t> keyframe_frames;   // dataset frame index of each processed keyframe
-  size_t skipped_frames = 0;              // unreadable images (see skip_unreadable_frames)
+  std::vector<int64_t> keyframe_frames;  // dataset frame index of each processed keyframe
+  size_t skipped_frames = 0;             // unreadable images (see skip_unreadable_frames)
   PoseGraphSummary optimizer;
   Trajectory raw;                   // raw poses matched to the dataset's frames
   Trajectory corrected;             // same frames, corrected

@@ -61,7 +61,8 @@ class EdgeError {
 // Jl(E) is computed with 7-dimensional Jets over the small map at d = 0 (exact, no Jr^-1
 // approximation); autodiff through the whole residual needs 16-dimensional Jets through two
 // products, an inverse and the log. Ad is the Sim(3) adjoint, exp(Ad(T) x) = T exp(x) inv(T):
-//   [[s R, [t]x R, -t], [0, R, 0], [0, 0, 1]]   (Sophus' Sim3::Adj, same tangent order). Ceres wants Jacobians w.r.t. the 8 ambient
+//   [[s R, [t]x R, -t], [0, R, 0], [0, 0, 1]]   (Sophus' Sim3::Adj, same tangent order). Ceres
+//   wants Jacobians w.r.t. the 8 ambient
 // parameters and multiplies them by the manifold's PlusJacobian P (8x7); we return
 // J_tangent * P^+ with the left inverse P^+ of P = d(x exp(d))/dd at d = 0:
 //   rows upsilon: R^T / s on t;  rows omega: 2 [qw I + [qv]x ; -qv^T]^T on q;  row sigma: 1/s on s

@@ -23,7 +23,7 @@ struct BinaryAnnOptions {
   // Candidate list while searching, count >= neighbors. Recall@1 of a planted neighbour among 20k
   // random descriptors: 0.91 at 32, 0.98 at 64, 0.998 at 128 (tests/retrieval).
   int ef_search = 64;
-  int neighbors = 2;         // k nearest stored descriptors per query descriptor, count >= 1
+  int neighbors = 2;  // k nearest stored descriptors per query descriptor, count >= 1
   // A neighbour farther than this votes for nothing, bits in [0, 256] (the same bound as
   // MatchOptions::max_distance).
   int max_distance = 64;
