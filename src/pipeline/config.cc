@@ -260,6 +260,10 @@ void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options)
     const size_t offset = std::min<size_t>(e.byte, text.size());
     const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + offset, '\n'));
     throw FileError(path.string(), line, "valid JSON", e.what());
+  } catch (const nlohmann::json::exception& e) {
+    // E.g. out_of_range 406, a number too large for a double (found by fuzz_config); the parser
+    // gives no position for it.
+    throw FileError(path.string(), 0, "valid JSON with representable numbers", e.what());
   }
   ApplyConfig(j, path.string(), options);
 }

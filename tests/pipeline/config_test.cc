@@ -87,5 +87,20 @@ TEST(Config, SyntaxErrorNamesTheLine) {
   EXPECT_THROW(LoadConfigFile(test::TempDir() / "missing.json", &o), FileError);
 }
 
+// Found by fuzz_config: a number beyond double range is nlohmann's out_of_range, not a
+// parse_error; it must still be a FileError naming the file.
+TEST(Config, NumberOverflowIsAFileError) {
+  const auto path = test::TempDir() / "overflow.json";
+  std::ofstream(path) << "{\"detector\": {\"check_every\": 7777777777e7000000000}}\n";
+  try {
+    PipelineOptions o;
+    LoadConfigFile(path, &o);
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), path.string());
+    EXPECT_NE(std::string(e.what()).find("overflow"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace sparseloop
