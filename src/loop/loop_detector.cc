@@ -123,18 +123,9 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
 
   // 1. Informative features.
   Timer stage;
-  KeyframeRecord rec;
-  rec.id = input.id;
-  rec.timestamp = input.timestamp;
+  KeyframeRecord rec = ExtractRecord(input);
   rec.has_pose = input.world_from_cam.has_value();
   if (rec.has_pose) rec.world_from_cam = *input.world_from_cam;
-  FeatureInput fin;
-  fin.image = &input.image;
-  fin.intrinsics = &input.intrinsics;
-  if (!input.high_gradient_mask.empty()) fin.mask = &input.high_gradient_mask;
-  if (!input.mapped_pixels.empty()) fin.mapped_pixels = &input.mapped_pixels;
-  if (!input.mapped_depths.empty()) fin.mapped_depths = &input.mapped_depths;
-  ExtractInformativeFeatures(fin, options_.features, &rec);
   result.timings.extract_ms = stage.ElapsedMs();
 
   // 2. Store.
@@ -286,13 +277,7 @@ void LoopDetector::ValidateImageInput(const KeyframeInput& input) const {
       input.mapped_pixels.size());
 }
 
-LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
-  Timer total;
-  ValidateImageInput(input);
-  LoopResult result;
-  result.query_id = input.id;
-  result.relocalization = true;
-  Timer stage;
+KeyframeRecord LoopDetector::ExtractRecord(const KeyframeInput& input) const {
   KeyframeRecord rec;
   rec.id = input.id;
   rec.timestamp = input.timestamp;
@@ -303,6 +288,17 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   if (!input.mapped_pixels.empty()) fin.mapped_pixels = &input.mapped_pixels;
   if (!input.mapped_depths.empty()) fin.mapped_depths = &input.mapped_depths;
   ExtractInformativeFeatures(fin, options_.features, &rec);
+  return rec;
+}
+
+LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
+  Timer total;
+  ValidateImageInput(input);
+  LoopResult result;
+  result.query_id = input.id;
+  result.relocalization = true;
+  Timer stage;
+  KeyframeRecord rec = ExtractRecord(input);
   result.timings.extract_ms = stage.ElapsedMs();
   if (rec.size() < 5) {
     result.status = LoopStatus::kNoFeatures;

@@ -198,6 +198,8 @@ class LoopDetector {
   void MatchAndVerifyPool(const KeyframeRecord& query, const std::vector<PoolEntry>& pool,
                           LoopResult* result) const;
   void ValidateImageInput(const KeyframeInput& input) const;
+  // Id, timestamp and the K informative features of `input` (no pose): Process and Relocalize.
+  KeyframeRecord ExtractRecord(const KeyframeInput& input) const;
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
 
   Options options_;
