@@ -28,6 +28,56 @@ int TangentSize(VertexType type) {
   return 7;
 }
 
+namespace {
+
+// Row-major 8 x n PlusJacobian; `columns` is n. Quaternion rows for a rotation increment
+// `omega_col` about the body axes: (q * [v, 1]) / 2 differentiated in v.
+void SetBodyRotationRows(const double* x, int columns, int omega_col, double* j) {
+  const double qx = x[0], qy = x[1], qz = x[2], qw = x[3];
+  // m = [qw I + [qv]x ; -qv^T] / 2, rows x y z w.
+  const double m[4][3] = {{qw, -qz, qy}, {qz, qw, -qx}, {-qy, qx, qw}, {-qx, -qy, -qz}};
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 3; ++c) j[r * columns + omega_col + c] = 0.5 * m[r][c];
+  }
+}
+
+void SetScaledRotationRows(const double* x, int columns, double* j) {
+  const Eigen::Matrix3d r = x[7] * Eigen::Quaterniond(x[3], x[0], x[1], x[2]).toRotationMatrix();
+  for (int row = 0; row < 3; ++row) {
+    for (int c = 0; c < 3; ++c) j[(4 + row) * columns + c] = r(row, c);
+  }
+}
+
+// Yaw about world z: d(Rz(y) q)/dy at 0 = (e_z * q) / 2; translation increments in world axes.
+void YawPlusJacobian(const double* x, int translation_dims, double* j) {
+  const int columns = translation_dims + 1;
+  std::fill(j, j + 8 * columns, 0.0);
+  const double qx = x[0], qy = x[1], qz = x[2], qw = x[3];
+  j[0 * columns + translation_dims] = -0.5 * qy;
+  j[1 * columns + translation_dims] = 0.5 * qx;
+  j[2 * columns + translation_dims] = 0.5 * qw;
+  j[3 * columns + translation_dims] = -0.5 * qz;
+  for (int i = 0; i < translation_dims; ++i) j[(4 + i) * columns + i] = 1.0;
+}
+
+}  // namespace
+
+void Sim3PlusJacobian(const double* x, double* jacobian) {
+  std::fill(jacobian, jacobian + 8 * 7, 0.0);
+  SetBodyRotationRows(x, 7, 3, jacobian);
+  SetScaledRotationRows(x, 7, jacobian);
+  jacobian[7 * 7 + 6] = x[7];
+}
+
+void Se3OnSim3PlusJacobian(const double* x, double* jacobian) {
+  std::fill(jacobian, jacobian + 8 * 6, 0.0);
+  SetBodyRotationRows(x, 6, 3, jacobian);
+  SetScaledRotationRows(x, 6, jacobian);
+}
+
+void FourDofPlusJacobian(const double* x, double* jacobian) { YawPlusJacobian(x, 3, jacobian); }
+void Se2OnSim3PlusJacobian(const double* x, double* jacobian) { YawPlusJacobian(x, 2, jacobian); }
+
 std::unique_ptr<ceres::Manifold> CreateVertexManifold(VertexType type) {
   switch (type) {
     case VertexType::kSim3:
@@ -47,6 +97,15 @@ Matrix7d SqrtInformation(const Matrix7d& information) {
   SL_CHECK_MSG((information - information.transpose()).cwiseAbs().maxCoeff() <=
                    1e-9 * std::max(1.0, information.cwiseAbs().maxCoeff()),
                "information matrix is not symmetric");
+  // Diagonal (every odometry edge, OdometryWeighting): the square root is elementwise. This is
+  // also what skips a 7x7 eigen-decomposition per edge at every solve.
+  const Matrix7d off_diagonal = information - Matrix7d(information.diagonal().asDiagonal());
+  if (off_diagonal.isZero(0.0)) {
+    const Eigen::Matrix<double, 7, 1> d = information.diagonal();
+    const double tol = 1e-9 * std::max(1.0, d.cwiseAbs().maxCoeff());
+    SL_CHECK_MSG(d.minCoeff() >= -tol, "information matrix is not positive semi-definite");
+    return Matrix7d(d.cwiseMax(0.0).cwiseSqrt().asDiagonal());
+  }
   Eigen::SelfAdjointEigenSolver<Matrix7d> eig(information);
   const Eigen::Matrix<double, 7, 1> values = eig.eigenvalues();
   const double tol = 1e-9 * std::max(1.0, values.cwiseAbs().maxCoeff());

@@ -166,10 +166,11 @@ struct CorrectionResult {
 inline CorrectionResult CorrectAndScore(const std::vector<Sim3d>& raw, const std::vector<Sim3d>& gt,
                                         const std::vector<LoopConstraint>& loops,
                                         const PoseGraphOptions& options,
-                                        const OdometryWeighting& weighting = {}) {
+                                        const OdometryWeighting& weighting = {},
+                                        VertexType vertex_type = VertexType::kSim3) {
   std::vector<int64_t> ids(raw.size());
   for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int64_t>(i);
-  PoseGraph graph = BuildOdometryGraph(ids, raw, VertexType::kSim3, weighting);
+  PoseGraph graph = BuildOdometryGraph(ids, raw, vertex_type, weighting);
   for (const auto& l : loops) graph.AddLoop(l);
   CorrectionResult r;
   r.summary = graph.Optimize(options);

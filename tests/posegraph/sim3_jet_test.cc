@@ -131,6 +131,37 @@ TEST(Manifolds, FourDofInvariantsHold) {
 }
 TEST(Manifolds, Se2InvariantsHold) { CheckManifold<Se2OnSim3Manifold>(VertexType::kSe2, 3, 0.5); }
 
+// The closed-form PlusJacobian equals the autodiff one of the same Plus, at random points
+// (including a negative-w quaternion and non-unit scale).
+template <typename Analytic, typename AutoDiff>
+void CheckPlusJacobianMatchesAutodiff(VertexType type, int tangent) {
+  const Analytic analytic;
+  const AutoDiff autodiff;
+  auto rng = test::SeededRng(11);
+  for (int k = 0; k < 20; ++k) {
+    Vector8d x = RandomPoint(rng, type);
+    if (k % 2 == 1) x.head<4>() = -x.head<4>();  // the same rotation, other hemisphere
+    if (type == VertexType::kSe3) x[7] = 1.3;    // a stored scale other than 1 multiplies R
+    Eigen::Matrix<double, 8, Eigen::Dynamic, Eigen::RowMajor> ja(8, tangent), jd(8, tangent);
+    ja.setConstant(7.0);  // every entry must be written
+    ASSERT_TRUE(analytic.PlusJacobian(x.data(), ja.data()));
+    ASSERT_TRUE(autodiff.PlusJacobian(x.data(), jd.data()));
+    EXPECT_LT((ja - jd).cwiseAbs().maxCoeff(), 1e-12) << "point " << k << "\n"
+                                                      << ja << "\n\n"
+                                                      << jd;
+  }
+}
+
+TEST(Manifolds, ClosedFormPlusJacobiansMatchAutodiff) {
+  CheckPlusJacobianMatchesAutodiff<Sim3Manifold, Sim3AutoDiffManifold>(VertexType::kSim3, 7);
+  CheckPlusJacobianMatchesAutodiff<Se3OnSim3Manifold, Se3OnSim3AutoDiffManifold>(VertexType::kSe3,
+                                                                                 6);
+  CheckPlusJacobianMatchesAutodiff<FourDofManifold, FourDofAutoDiffManifold>(VertexType::kFourDof,
+                                                                             4);
+  CheckPlusJacobianMatchesAutodiff<Se2OnSim3Manifold, Se2OnSim3AutoDiffManifold>(VertexType::kSe2,
+                                                                                 3);
+}
+
 TEST(Manifolds, PlusIsRightMultiplicationByExp) {
   Sim3Manifold manifold;
   auto rng = test::SeededRng(5);
@@ -210,7 +241,8 @@ TEST(Sim3EdgeCost, MatchesAutodiffAndFiniteDifferences) {
                                {2.0, 1.0, 0.3, 0.2},
                                {2.0, 1.0, 0.3, 0.0},
                                {2.0, 1e-7, 1e-7, 1e-6},
-                               {50.0, 2.8, 0.5, 0.5}};
+                               {50.0, 2.8, 0.5, 0.5},
+                               {50.0, 2.8, 0.5, 0.02}};  // series Jl (small log E)
   for (const auto& reg : regimes) {
     for (int trial = 0; trial < 20; ++trial) {
       const Sim3d a = Sim3d::Exp(RandomTangent(rng, reg[0], reg[1], reg[2]));
@@ -269,6 +301,43 @@ TEST(EdgeError, SqrtInformationRejectsIndefinite) {
   rank_deficient(0, 0) = 4.0;
   const Matrix7d s = SqrtInformation(rank_deficient);
   EXPECT_LT((s.transpose() * s - rank_deficient).norm(), 1e-12);
+}
+
+// Sim3EdgeCost's Bernoulli-series Jl against the exact Jet one, up to the series' limit
+// (|omega|, |sigma| < 0.05) and with translations up to 100 units (they enter ad nilpotently).
+TEST(Sim3EdgeCost, SeriesLogJacobianMatchesJetsUpToItsLimit) {
+  auto rng = test::SeededRng(12);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int k = 0; k < 200; ++k) {
+    const double rot = 0.0499 * (k % 10) / 9.0;
+    Eigen::Vector3d axis(n(rng), n(rng), n(rng));
+    jet::Vector7<double> xi;
+    xi.head<3>() = 100.0 * (k % 7) / 6.0 * Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+    xi.segment<3>(3) = rot * axis.normalized();
+    xi[6] = 0.0499 * std::sin(k);
+    const Sim3d e_d = Sim3d::Exp(xi);
+    jet::Sim3<double> e;
+    e.rotation = e_d.rotation;
+    e.translation = e_d.translation;
+    e.scale = e_d.scale;
+    const jet::Vector7<double> log = e.Log();
+    const Matrix7d series = Sim3EdgeCost::LogJacobian(e, log);
+    // The exact value: log(E exp(d)) differentiated with Jets.
+    using J = ceres::Jet<double, 7>;
+    jet::Sim3<J> ej;
+    ej.rotation = e.rotation.cast<J>();
+    ej.translation = e.translation.cast<J>();
+    ej.scale = J(e.scale);
+    jet::Vector7<J> d;
+    for (int i = 0; i < 7; ++i) d[i] = J(0.0, i);
+    const jet::Vector7<J> lj = (ej * jet::Sim3<J>::Exp(d)).Log();
+    Matrix7d exact;
+    for (int row = 0; row < 7; ++row) exact.row(row) = lj[row].v.transpose();
+    EXPECT_LT((series - exact).cwiseAbs().maxCoeff(), 1e-10 * std::max(1.0, exact.norm()))
+        << "k " << k << "\n"
+        << series << "\n\n"
+        << exact;
+  }
 }
 
 }  // namespace

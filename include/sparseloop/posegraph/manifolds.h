@@ -6,7 +6,8 @@
 //   Se3      6 DoF  same with sigma = 0: the scale stays as stored (metric input)
 //   FourDof  4 DoF  x, y, z translation + yaw about the world z (gravity) axis (VIO)
 //   Se2      3 DoF  x, y translation + yaw about world z (planar g2o graphs)
-// Jacobians come from ceres::AutoDiffManifold over the templates in sim3_jet.h.
+// Plus / Minus are the templates in sim3_jet.h; PlusJacobian is closed-form, MinusJacobian
+// comes from ceres::AutoDiffManifold.
 #include <memory>
 
 #include <ceres/autodiff_manifold.h>
@@ -103,10 +104,56 @@ struct YawPlusFunctor {
   }
 };
 
-using Sim3Manifold = ceres::AutoDiffManifold<Sim3PlusFunctor, 8, 7>;
-using Se3OnSim3Manifold = ceres::AutoDiffManifold<Se3OnSim3PlusFunctor, 8, 6>;
-using FourDofManifold = ceres::AutoDiffManifold<YawPlusFunctor<3>, 8, 4>;
-using Se2OnSim3Manifold = ceres::AutoDiffManifold<YawPlusFunctor<2>, 8, 3>;
+// The manifold of a functor above with a closed-form PlusJacobian (the 8 x kTangent matrix
+// d Plus(x, d) / dd at d = 0); Plus, Minus and MinusJacobian are the functor's, the latter through
+// ceres::AutoDiffManifold. Ceres calls PlusJacobian for every parameter block at every new state;
+// through autodiff that needed (8 + kTangent)-dimensional Jets through the Sim(3) exponential and
+// was ~40 % of a 5,000-keyframe solve (bench_posegraph). `PlusJacobianFn` writes it row-major.
+// Checked against the autodiff Jacobian and by Ceres' manifold invariants (sim3_jet_test.cc).
+template <typename Functor, int kTangent, void (*PlusJacobianFn)(const double*, double*)>
+class AnalyticPlusJacobianManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 8; }
+  int TangentSize() const override { return kTangent; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    return autodiff_.Plus(x, delta, x_plus_delta);
+  }
+  bool PlusJacobian(const double* x, double* jacobian) const override {
+    PlusJacobianFn(x, jacobian);
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    return autodiff_.Minus(y, x, y_minus_x);
+  }
+  bool MinusJacobian(const double* x, double* jacobian) const override {
+    return autodiff_.MinusJacobian(x, jacobian);
+  }
+
+ private:
+  ceres::AutoDiffManifold<Functor, 8, kTangent> autodiff_;
+};
+
+// d(x * exp(d)) / dd at d = 0 for x = [qx qy qz qw tx ty tz s] (row-major 8 x 7):
+//   q rows, omega columns: m / 2 with m = d(q * [v, 1]) / dv = [qw I + [qv]x ; -qv^T]
+//   t rows, upsilon columns: s R(q);   s row, sigma column: s.
+void Sim3PlusJacobian(const double* x, double* jacobian);
+// The same without the sigma column (8 x 6): the scale never moves.
+void Se3OnSim3PlusJacobian(const double* x, double* jacobian);
+// Yaw about world z (q rows: (e_z * q) / 2) and world translation increments (8 x 4 / 8 x 3).
+void FourDofPlusJacobian(const double* x, double* jacobian);
+void Se2OnSim3PlusJacobian(const double* x, double* jacobian);
+
+using Sim3Manifold = AnalyticPlusJacobianManifold<Sim3PlusFunctor, 7, &Sim3PlusJacobian>;
+using Se3OnSim3Manifold =
+    AnalyticPlusJacobianManifold<Se3OnSim3PlusFunctor, 6, &Se3OnSim3PlusJacobian>;
+using FourDofManifold = AnalyticPlusJacobianManifold<YawPlusFunctor<3>, 4, &FourDofPlusJacobian>;
+using Se2OnSim3Manifold =
+    AnalyticPlusJacobianManifold<YawPlusFunctor<2>, 3, &Se2OnSim3PlusJacobian>;
+// The autodiff originals, kept as the reference the tests compare against.
+using Sim3AutoDiffManifold = ceres::AutoDiffManifold<Sim3PlusFunctor, 8, 7>;
+using Se3OnSim3AutoDiffManifold = ceres::AutoDiffManifold<Se3OnSim3PlusFunctor, 8, 6>;
+using FourDofAutoDiffManifold = ceres::AutoDiffManifold<YawPlusFunctor<3>, 8, 4>;
+using Se2OnSim3AutoDiffManifold = ceres::AutoDiffManifold<YawPlusFunctor<2>, 8, 3>;
 
 // A new manifold for `type` (the caller, usually ceres::Problem, takes ownership).
 std::unique_ptr<ceres::Manifold> CreateVertexManifold(VertexType type);
