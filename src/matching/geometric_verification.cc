@@ -153,6 +153,77 @@ void RefineEssential(const std::vector<Eigen::Vector3d>& xm, const std::vector<E
   }
 }
 
+// PnP: 3D points (keypoint bearing x depth) of the side with depths, 2D observations on the
+// other; EPnP inside RANSAC, then Levenberg-Marquardt on the inliers and one re-collection of
+// the inliers with the refined pose (EPnP from a minimal set is noisy with stereo-grade depths).
+// Sets method, inliers, inlier_matches, match_from_query and pose_kind (kNone on failure).
+void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
+               const std::vector<DescriptorMatch>& matches, bool points_in_match,
+               const VerifyOptions& options, double threshold, VerificationResult* result) {
+  result->method = VerificationMethod::kPnP;
+  const bool m_depth = points_in_match;
+  const KeyframeRecord& with = m_depth ? match : query;
+  const KeyframeRecord& other = m_depth ? query : match;
+  std::vector<cv::Point3f> object;
+  std::vector<cv::Point2f> image;
+  std::vector<int> idx;
+  for (size_t i = 0; i < matches.size(); ++i) {
+    const int wi = m_depth ? matches[i].train : matches[i].query;
+    const int oi = m_depth ? matches[i].query : matches[i].train;
+    const float d = with.depths[wi];
+    if (d <= 0) continue;
+    const auto& kw = with.keypoints[wi];
+    const auto& ko = other.keypoints[oi];
+    object.emplace_back(d * kw.x, d * kw.y, d);
+    image.emplace_back(ko.x, ko.y);
+    idx.push_back(int(i));
+  }
+  if (static_cast<int>(object.size()) < std::max(6, options.min_inliers)) return;
+  cv::Mat rvec, tvec, inl;
+  const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
+  const bool ok = cv::solvePnPRansac(object, image, eye, cv::noArray(), rvec, tvec, false,
+                                     options.max_iterations, threshold, options.confidence, inl,
+                                     cv::SOLVEPNP_EPNP);
+  if (!ok || inl.rows < 4) return;
+  std::vector<int> inliers(inl.rows);
+  for (int r = 0; r < inl.rows; ++r) inliers[r] = inl.at<int>(r);
+  const auto collect = [&](const cv::Mat& rv, const cv::Mat& tv) {
+    std::vector<cv::Point2f> projected;
+    cv::projectPoints(object, rv, tv, eye, cv::noArray(), projected);
+    std::vector<int> in;
+    for (size_t k = 0; k < projected.size(); ++k) {
+      if (cv::norm(projected[k] - image[k]) <= threshold) in.push_back(static_cast<int>(k));
+    }
+    return in;
+  };
+  for (int round = 0; round < 2 && inliers.size() >= 6; ++round) {
+    std::vector<cv::Point3f> obj_in;
+    std::vector<cv::Point2f> img_in;
+    for (int k : inliers) {
+      obj_in.push_back(object[k]);
+      img_in.push_back(image[k]);
+    }
+    cv::Mat rv = rvec.clone(), tv = tvec.clone();
+    if (!cv::solvePnP(obj_in, img_in, eye, cv::noArray(), rv, tv, /*useExtrinsicGuess=*/true,
+                      cv::SOLVEPNP_ITERATIVE)) {
+      break;
+    }
+    std::vector<int> refined = collect(rv, tv);
+    if (refined.size() < inliers.size()) break;
+    rvec = rv;
+    tvec = tv;
+    inliers = std::move(refined);
+  }
+  for (int k : inliers) result->inlier_matches.push_back(idx[k]);
+  result->inliers = static_cast<int>(inliers.size());
+  cv::Mat r_cv;
+  cv::Rodrigues(rvec, r_cv);
+  // other_from_with maps the 3D side into the 2D side's camera.
+  const Sim3d other_from_with = FromCv(r_cv, tvec);
+  result->match_from_query = m_depth ? other_from_with.Inverse() : other_from_with;
+  result->pose_kind = RelativePoseKind::kSE3Metric;
+}
+
 }  // namespace
 
 VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord& match,
@@ -197,42 +268,25 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
       result.pose_kind = RelativePoseKind::kSim3;
       result.success = accept(result.inliers);
     }
+    if (result.success) return result;
+    // 3-point Sim(3) hypotheses from noisy depths (stereo: ~5 % at a few metres) rarely pass a
+    // 2 px reprojection check in both cameras: try the match's 3D points against the query's
+    // 2D observations (PnP, the paper's image-to-map step), which needs depth on one side only.
+    VerificationResult pnp = result;
+    pnp.inlier_matches.clear();
+    pnp.inliers = 0;
+    pnp.pose_kind = RelativePoseKind::kNone;
+    VerifyPnp(query, match, matches, /*points_in_match=*/true, options, threshold, &pnp);
+    if (pnp.pose_kind != RelativePoseKind::kNone && pnp.inliers > result.inliers) {
+      result = std::move(pnp);
+      result.success = accept(result.inliers);
+    }
     return result;
   }
 
   if (q_depth || m_depth) {
-    // PnP: 3D points on the side with depths, 2D observations on the other.
-    result.method = VerificationMethod::kPnP;
-    const KeyframeRecord& with = m_depth ? match : query;
-    std::vector<cv::Point3f> object;
-    std::vector<cv::Point2f> image;
-    std::vector<int> idx;
-    for (size_t i = 0; i < matches.size(); ++i) {
-      const int wi = m_depth ? matches[i].train : matches[i].query;
-      const int oi = m_depth ? matches[i].query : matches[i].train;
-      const float d = with.depths[wi];
-      if (d <= 0) continue;
-      const auto& kw = with.keypoints[wi];
-      const auto& ko = (m_depth ? query : match).keypoints[oi];
-      object.emplace_back(d * kw.x, d * kw.y, d);
-      image.emplace_back(ko.x, ko.y);
-      idx.push_back(int(i));
-    }
-    if (static_cast<int>(object.size()) < std::max(6, options.min_inliers)) return result;
-    cv::Mat rvec, tvec, inl;
-    const bool ok = cv::solvePnPRansac(object, image, cv::Mat::eye(3, 3, CV_64F), cv::noArray(),
-                                       rvec, tvec, false, options.max_iterations, threshold,
-                                       options.confidence, inl, cv::SOLVEPNP_EPNP);
-    if (!ok) return result;
-    for (int r = 0; r < inl.rows; ++r) result.inlier_matches.push_back(idx[inl.at<int>(r)]);
-    result.inliers = inl.rows;
-    cv::Mat r_cv;
-    cv::Rodrigues(rvec, r_cv);
-    // other_from_with maps the 3D side into the 2D side's camera.
-    const Sim3d other_from_with = FromCv(r_cv, tvec);
-    result.match_from_query = m_depth ? other_from_with.Inverse() : other_from_with;
-    result.pose_kind = RelativePoseKind::kSE3Metric;
-    result.success = accept(result.inliers);
+    VerifyPnp(query, match, matches, /*points_in_match=*/m_depth, options, threshold, &result);
+    result.success = result.pose_kind != RelativePoseKind::kNone && accept(result.inliers);
     return result;
   }
 
