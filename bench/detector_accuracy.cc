@@ -12,7 +12,8 @@
 //     loop's relative rotation error and translation direction error vs GT, degrees;
 //   castle_pairs[ranking][K]: descriptor matches and essential inliers (min_inliers 5) of the
 //     true loops 29-01, 29-02 and the false pairs 29-15, 20-05, K in {15, 50};
-//   euroc: both loop pairs, default options (global search): status, inliers, rotation error.
+//   euroc: both loop pairs, default options (global search), monocular and with stereo depths:
+//   status, method, inliers, rotation / direction (and metric translation) error.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -28,6 +29,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "euroc_pairs.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/matching/descriptor_matching.h"
 #include "sparseloop/matching/geometric_verification.h"
@@ -219,62 +221,23 @@ json Rtabmap(const fs::path& root, bool quick) {
   return out;
 }
 
-// ---- euroc_loop_pairs: GT body poses (Kimera-VIO test constants) + T_BS, radtan intrinsics.
+// ---- euroc_loop_pairs (tests/loop/euroc_pairs.h): monocular, and with the stereo-mapped depths.
 json Euroc(const fs::path& root) {
-  Eigen::Matrix4d t_bs;
-  t_bs << 0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975, 0.999557249008,
-      0.0149672133247, 0.025715529948, -0.064676986768, -0.0257744366974, 0.00375618835797,
-      0.999660727178, 0.00981073058949, 0, 0, 0, 1;
-  const Rigid3d body_from_cam = Rigid3d::FromMatrix3x4(t_bs.topRows<3>(), 1e-4);
-  const double g[4][7] = {
-      {0.338337, 0.608466, -0.535476, 0.478082, 1.573832, 2.023348, 1.738755},
-      {0.478634, 0.415595, -0.700197, 0.328505, 1.872115, 1.786064, 1.586159},
-      {0.3394, -0.672895, -0.492724, -0.435018, -0.662997, -0.495046, 1.347300},
-      {0.39266, -0.590667, -0.58023, -0.400326, -0.345638, -0.501712, 1.320441}};
-  std::vector<Rigid3d> world_from_cam;
-  for (const auto& r : g)
-    world_from_cam.push_back(
-        Rigid3d(Eigen::Quaterniond(r[0], r[1], r[2], r[3]), Eigen::Vector3d(r[4], r[5], r[6])) *
-        body_from_cam);
-  CameraIntrinsics k;
-  k.fx = 458.654;
-  k.fy = 457.296;
-  k.cx = 367.215;
-  k.cy = 248.375;
-  k.width = 752;
-  k.height = 480;
-  k.distortion_model = DistortionModel::kRadialTangential;
-  k.distortion = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
   json out = json::array();
-  for (int pair = 0; pair < 2; ++pair) {
-    const int m = 2 * pair, q = 2 * pair + 1;
-    LoopDetector::Options options;
-    options.search.strategy = SearchStrategy::kGlobal;
-    options.search.exclude_recent = 0;
-    options.min_path_ratio = 0;
-    LoopDetector detector(options);
-    LoopResult r;
-    for (int i : {m, q}) {
-      KeyframeInput in;
-      in.id = i;
-      in.timestamp = static_cast<double>(i);
-      in.image = cv::imread((root / ("left_img_" + std::to_string(i) + ".png")).string(),
-                            cv::IMREAD_GRAYSCALE);
-      if (in.image.empty())
-        throw std::runtime_error("cannot read euroc image " + std::to_string(i));
-      in.intrinsics = k;
-      in.world_from_cam = Sim3d(world_from_cam[i]);
-      r = detector.Process(in);
+  for (const bool stereo : {false, true}) {
+    for (int pair = 0; pair < 2; ++pair) {
+      const test::EurocPairResult r = test::RunEurocPair(root, pair, stereo);
+      json row = {{"pair", {2 * pair, 2 * pair + 1}},
+                  {"depths", stereo ? "stereo" : "none"},
+                  {"status", ToString(r.result.status)},
+                  {"method", ToString(r.result.method)},
+                  {"inliers", r.result.inliers},
+                  {"matches", r.result.matches},
+                  {"rotation_error_deg", r.rotation_error_deg},
+                  {"translation_direction_error_deg", r.translation_direction_error_deg}};
+      if (r.translation_error_m >= 0) row["translation_error_m"] = r.translation_error_m;
+      out.push_back(row);
     }
-    const Rigid3d rel = world_from_cam[m].Inverse() * world_from_cam[q];
-    out.push_back(
-        {{"pair", {m, q}},
-         {"status", ToString(r.status)},
-         {"inliers", r.inliers},
-         {"matches", r.matches},
-         {"rotation_error_deg", Deg(RotationAngle(rel.rotation, r.match_from_query.rotation))},
-         {"translation_direction_error_deg",
-          AngleBetween(rel.translation, r.match_from_query.translation)}});
   }
   return out;
 }

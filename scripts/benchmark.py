@@ -1012,13 +1012,18 @@ def real_sets_md(da):
                  table(["loop", "inliers", "rotation err deg", "direction err deg"], rows) + "\n")
     eu = da.get("euroc", [])
     if eu:
-        rows = [[f"{e['pair'][0]}-{e['pair'][1]}", e.get("status"), e.get("matches"),
-                 e.get("inliers"), e.get("rotation_error_deg"),
-                 e.get("translation_direction_error_deg")] for e in eu]
+        rows = [[f"{e['pair'][0]}-{e['pair'][1]}", e.get("depths", "none"), e.get("status"),
+                 e.get("method", ""), e.get("matches"), e.get("inliers"),
+                 e.get("rotation_error_deg"), e.get("translation_direction_error_deg"),
+                 e.get("translation_error_m", "")] for e in eu]
         text += ("\neuroc_loop_pairs (two images each, global search; target: both verified, "
-                 "rotation < 3 deg):\n\n" + table(["pair", "status", "matches", "inliers",
-                                                     "rotation err deg", "direction err deg"],
-                                                    rows) + "\n")
+                 "rotation < 3 deg). `stereo`: the keyframes carry the left image's ORB corners "
+                 "with StereoSGBM depths, what a stereo vSLAM hands over (tests/loop/"
+                 "euroc_pairs.h); `none`: monocular, where pair 2-3 is a two-view "
+                 "near-degeneracy (docs/DETECTOR.md):\n\n" +
+                 table(["pair", "depths", "status", "method", "matches", "inliers",
+                        "rotation err deg", "direction err deg", "translation err m"],
+                       rows) + "\n")
     cp = da.get("castle_pairs", {})
     if cp:
         pairs = sorted({p for ks in cp.values() for prs in ks.values() for p in prs})

@@ -208,5 +208,23 @@ TEST(Verification, Sim3WithDepthsOnBothSidesCarriesScale) {
   EXPECT_LE(v.inliers, 52);
 }
 
+// Depths on both sides, but the query's are wrong (a bad depth map; here each multiplied by a
+// random factor in [0.5, 2]): no 3-point Sim(3) verifies, and the detector falls back to PnP of
+// the match's 3D points against the query's observations, which recovers the pose. The same
+// scene with the query's depths intact takes the Sim(3) path (previous test).
+TEST(Verification, BadDepthsOnOneSideFallBackToPnP) {
+  Scene s = MakeScene(27, 60, 10, true, true);
+  auto rng = test::SeededRng(28);
+  std::uniform_real_distribution<double> log_factor(std::log(0.5), std::log(2.0));
+  for (float& d : s.query.depths) d *= static_cast<float>(std::exp(log_factor(rng)));
+  const auto v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
+  ASSERT_TRUE(v.success);
+  EXPECT_EQ(v.method, VerificationMethod::kPnP);
+  EXPECT_EQ(v.pose_kind, RelativePoseKind::kSE3Metric);
+  EXPECT_GE(v.inliers, 48);
+  EXPECT_LT(RotationAngle(v.match_from_query.rotation, s.match_from_query.rotation), 1e-3);
+  EXPECT_LT((v.match_from_query.translation - s.match_from_query.translation).norm(), 1e-2);
+}
+
 }  // namespace
 }  // namespace sparseloop
