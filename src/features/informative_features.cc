@@ -127,10 +127,14 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
         acc += hist[median];
         if (2 * acc >= n) break;
       }
+      // mag > median + offset (cv::THRESH_BINARY's rule), as an integer bound on the 8-bit mag.
       const double th = median + options.threshold_offset;
-      const cv::Rect block(bx, by, x1 - bx, y1 - by);
-      cv::Mat out = mask(block);
-      cv::threshold(mag(block), out, th, 255, cv::THRESH_BINARY);
+      const int above = th < 0 ? 0 : static_cast<int>(std::floor(th)) + 1;  // mag >= above
+      for (int y = by; y < y1; ++y) {
+        const uint8_t* row = mag.ptr<uint8_t>(y);
+        uint8_t* out = mask.ptr<uint8_t>(y);
+        for (int x = bx; x < x1; ++x) out[x] = row[x] >= above ? 255 : 0;
+      }
     }
   }
   if (options.dilate_radius > 0) {
