@@ -269,7 +269,7 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
       result.success = accept(result.inliers);
     }
     if (result.success) return result;
-    // 3-point Sim(3) hypotheses from noisy depths (stereo: ~5 % at a few metres) rarely pass a
+    // 3-point Sim(3) hypotheses from noisy depths (sparse stereo: ~10 % at 4 m) rarely pass a
     // 2 px reprojection check in both cameras: try the match's 3D points against the query's
     // 2D observations (PnP, the paper's image-to-map step), which needs depth on one side only.
     VerificationResult pnp = result;
