@@ -272,10 +272,8 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
     // 3-point Sim(3) hypotheses from noisy depths (sparse stereo: ~10 % at 4 m) rarely pass a
     // 2 px reprojection check in both cameras: try the match's 3D points against the query's
     // 2D observations (PnP, the paper's image-to-map step), which needs depth on one side only.
-    VerificationResult pnp = result;
-    pnp.inlier_matches.clear();
-    pnp.inliers = 0;
-    pnp.pose_kind = RelativePoseKind::kNone;
+    VerificationResult pnp;
+    pnp.matches = result.matches;
     VerifyPnp(query, match, matches, /*points_in_match=*/true, options, threshold, &pnp);
     if (pnp.pose_kind != RelativePoseKind::kNone && pnp.inliers > result.inliers) {
       result = std::move(pnp);

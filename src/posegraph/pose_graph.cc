@@ -30,14 +30,14 @@ int TangentSize(VertexType type) {
 
 namespace {
 
-// Row-major 8 x n PlusJacobian; `columns` is n. Quaternion rows for a rotation increment
-// `omega_col` about the body axes: (q * [v, 1]) / 2 differentiated in v.
-void SetBodyRotationRows(const double* x, int columns, int omega_col, double* j) {
+// Row-major 8 x n PlusJacobian; `columns` is n. Quaternion rows for a rotation increment about
+// the body axes (tangent columns 3..5): (q * [v, 1]) / 2 differentiated in v.
+void SetBodyRotationRows(const double* x, int columns, double* j) {
   const double qx = x[0], qy = x[1], qz = x[2], qw = x[3];
   // m = [qw I + [qv]x ; -qv^T] / 2, rows x y z w.
   const double m[4][3] = {{qw, -qz, qy}, {qz, qw, -qx}, {-qy, qx, qw}, {-qx, -qy, -qz}};
   for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 3; ++c) j[r * columns + omega_col + c] = 0.5 * m[r][c];
+    for (int c = 0; c < 3; ++c) j[r * columns + 3 + c] = 0.5 * m[r][c];
   }
 }
 
@@ -64,14 +64,14 @@ void YawPlusJacobian(const double* x, int translation_dims, double* j) {
 
 void Sim3PlusJacobian(const double* x, double* jacobian) {
   std::fill(jacobian, jacobian + 8 * 7, 0.0);
-  SetBodyRotationRows(x, 7, 3, jacobian);
+  SetBodyRotationRows(x, 7, jacobian);
   SetScaledRotationRows(x, 7, jacobian);
   jacobian[7 * 7 + 6] = x[7];
 }
 
 void Se3OnSim3PlusJacobian(const double* x, double* jacobian) {
   std::fill(jacobian, jacobian + 8 * 6, 0.0);
-  SetBodyRotationRows(x, 6, 3, jacobian);
+  SetBodyRotationRows(x, 6, jacobian);
   SetScaledRotationRows(x, 6, jacobian);
 }
 
