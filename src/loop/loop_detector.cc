@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
@@ -60,6 +61,13 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(min_inlier_fraction_of_k >= 0 && min_inlier_fraction_of_k <= 1,
                "min_inlier_fraction_of_k must be in [0, 1], got {}", min_inlier_fraction_of_k);
   SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
+  local_map.Check();
+}
+
+void LoopDetector::Options::LocalMapOptions::Check() const {
+  SL_CHECK_MSG(window >= 0, "local_map.window must be >= 0 keyframes, got {}", window);
+  SL_CHECK_MSG(neighbours >= 1, "local_map.neighbours must be >= 1 keyframe, got {}", neighbours);
+  triangulation.Check();
 }
 
 int LoopDetector::Options::EffectiveMinInliers() const {
@@ -413,6 +421,97 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   result->timings.verify_ms += stage.ElapsedMs();
 }
 
+VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
+                                                       size_t match_index, int* map_points) const {
+  const Options::LocalMapOptions& lm = options_.local_map;
+  const KeyframeRecord& match = records_[match_index];
+  // Only keyframes well before the query: the map must not contain the query's own stretch.
+  const size_t query_index = index_of_.at(query.id);
+  const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+  const size_t end = query_index > exclude ? query_index - exclude : 0;
+  auto usable = [&](int64_t i) {
+    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose;
+  };
+  // The map, in the match camera's frame: every window keyframe's triangulated keypoints as
+  // points (bearing + depth) of one virtual record, with their own descriptors.
+  KeyframeRecord map;
+  map.id = match.id;
+  map.has_pose = true;
+  map.world_from_cam = match.world_from_cam;
+  map.focal_px = match.focal_px;
+  std::vector<DescriptorMatch> matches;
+  std::vector<int> best_distance(query.size(), std::numeric_limits<int>::max());
+  std::vector<int> query_match(query.size(), -1);  // index into `matches`
+  const Sim3d match_from_world = match.world_from_cam.Inverse();
+  const int64_t mi = static_cast<int64_t>(match_index);
+  for (int64_t w = mi - lm.window; w <= mi + lm.window; ++w) {
+    if (!usable(w)) continue;
+    const KeyframeRecord& kf = records_[static_cast<size_t>(w)];
+    std::vector<const KeyframeRecord*> neighbours;
+    for (int64_t k = 1; k <= lm.neighbours; ++k) {
+      if (usable(w + k)) neighbours.push_back(&records_[static_cast<size_t>(w + k)]);
+      if (usable(w - k)) neighbours.push_back(&records_[static_cast<size_t>(w - k)]);
+    }
+    const TriangulationResult tri = TriangulateFromNeighbours(kf, neighbours, lm.triangulation);
+    if (tri.triangulated == 0) continue;
+    const Sim3d match_from_kf = match_from_world * kf.world_from_cam;
+    std::vector<int> map_index(kf.size(), -1);
+    for (size_t j = 0; j < kf.size(); ++j) {
+      if (tri.depths[j] <= 0) continue;
+      const Eigen::Vector3d p =
+          match_from_kf *
+          (double(tri.depths[j]) * Eigen::Vector3d(kf.keypoints[j].x, kf.keypoints[j].y, 1.0));
+      if (p.z() <= 0) continue;
+      CompactKeypoint c = kf.keypoints[j];
+      c.x = static_cast<float>(p.x() / p.z());
+      c.y = static_cast<float>(p.y() / p.z());
+      map_index[j] = static_cast<int>(map.keypoints.size());
+      map.keypoints.push_back(c);
+      map.descriptors.push_back(kf.descriptors[j]);
+      map.depths.push_back(static_cast<float>(p.z()));
+    }
+    // Matched per keyframe (the ratio test within one keyframe; the same point seen from two map
+    // keyframes would fail it across them), then the closest descriptor per query keypoint.
+    for (const DescriptorMatch& m :
+         MatchDescriptors(query.descriptors, kf.descriptors, options_.match)) {
+      if (map_index[m.train] < 0 || m.distance >= best_distance[m.query]) continue;
+      best_distance[m.query] = m.distance;
+      const DescriptorMatch dm{m.query, map_index[m.train], m.distance};
+      if (query_match[m.query] < 0) {
+        query_match[m.query] = static_cast<int>(matches.size());
+        matches.push_back(dm);
+      } else {
+        matches[static_cast<size_t>(query_match[m.query])] = dm;
+      }
+    }
+  }
+  *map_points = static_cast<int>(map.size());
+  VerificationResult none;
+  none.method = VerificationMethod::kPnP;
+  if (static_cast<int>(matches.size()) < verify_.min_inliers) return none;
+  std::sort(matches.begin(), matches.end(),
+            [](const DescriptorMatch& a, const DescriptorMatch& b) { return a.query < b.query; });
+  // The query's own points, triangulated with the keyframes before it (in the query's local
+  // scale): with both sides in 3D the relative pose is a Sim(3), whose scale is the scale drift
+  // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
+  // the 3D-3D model does not verify.
+  KeyframeRecord q = query;
+  if (query.has_pose) {
+    std::vector<const KeyframeRecord*> before;
+    for (int64_t k = 1; k <= lm.neighbours; ++k) {
+      const int64_t i = static_cast<int64_t>(query_index) - k;
+      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose)
+        before.push_back(&records_[static_cast<size_t>(i)]);
+    }
+    const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
+    if (tri.triangulated > 0) q.depths = tri.depths;
+  }
+  VerificationResult v = VerifyPair(q, map, matches, verify_);
+  return v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3
+             ? v
+             : none;
+}
+
 std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
                                                    const std::vector<int64_t>& allowed) {
   // Keyframes the search area may return (index < query index - exclude_recent) enter the index;
@@ -485,7 +584,20 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     const size_t match_index = record_index[cand.entry];
     const KeyframeRecord& match = records_[match_index];
     VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
+    int map_points = 0, map_inliers = 0;
+    if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
+        options_.local_map.enabled && match.has_pose) {
+      VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
+      if (m.success) {
+        map_inliers = m.inliers;
+        v.method = m.method;
+        v.pose_kind = m.pose_kind;
+        v.match_from_query = m.match_from_query;
+      }
+    }
     LoopResult trial = *result;
+    trial.local_map_points = map_inliers > 0 ? map_points : 0;
+    trial.local_map_inliers = map_inliers;
     trial.match_id = match.id;
     trial.matches = static_cast<int>(cand.matches.size());
     trial.inliers = v.inliers;

@@ -192,6 +192,14 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
       v->Get("use_depths", &o.verify.use_depths);
       v->Finish();
     }
+    if (auto l = d->Object("local_map")) {
+      l->Get("enabled", &o.local_map.enabled);
+      l->Get("window", &o.local_map.window);
+      l->Get("neighbours", &o.local_map.neighbours);
+      l->Get("max_reprojection_px", &o.local_map.triangulation.max_reprojection_px);
+      l->Get("min_parallax_deg", &o.local_map.triangulation.min_parallax_deg);
+      l->Finish();
+    }
     d->Get("check_every", &o.check_every);
     d->Get("min_matches", &o.min_matches);
     d->Get("max_verify", &o.max_verify);
@@ -303,6 +311,12 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
               {"min_inlier_ratio", d.verify.min_inlier_ratio},
               {"use_fundamental", d.verify.use_fundamental},
               {"use_depths", d.verify.use_depths}}},
+            {"local_map",
+             {{"enabled", d.local_map.enabled},
+              {"window", d.local_map.window},
+              {"neighbours", d.local_map.neighbours},
+              {"max_reprojection_px", d.local_map.triangulation.max_reprojection_px},
+              {"min_parallax_deg", d.local_map.triangulation.min_parallax_deg}}},
             {"check_every", d.check_every},
             {"min_matches", d.min_matches},
             {"max_verify", d.max_verify},

@@ -22,27 +22,30 @@ struct CastleRun {
   std::vector<LoopResult> loops;
 };
 
-// Views 0001..0029 in order, GT poses as raw poses, DEFAULT options; run once per test binary.
+// Views 0001..0029 in order, GT poses as raw poses.
+CastleRun RunCastle(const LoopDetector::Options& options) {
+  CastleRun r;
+  r.frames = test::LoadCastle();
+  LoopDetector detector(options);
+  for (size_t i = 0; i < r.frames.size(); ++i) {
+    KeyframeInput in;
+    in.id = static_cast<int64_t>(i + 1);        // view number
+    in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
+    in.image = r.frames[i].image;
+    in.intrinsics = r.frames[i].intrinsics;
+    in.world_from_cam = Sim3d(r.frames[i].world_from_cam);
+    const LoopResult res = detector.Process(in);
+    std::printf("view %02lld: %-24s match=%lld matches=%d inliers=%d prior_err=%.1f\n",
+                (long long)in.id, ToString(res.status), (long long)res.match_id, res.matches,
+                res.inliers, res.rotation_error_vs_prior_deg);
+    if (res.detected()) r.loops.push_back(res);
+  }
+  return r;
+}
+
+// DEFAULT options; run once per test binary.
 const CastleRun& Castle() {
-  static const CastleRun run = [] {
-    CastleRun r;
-    r.frames = test::LoadCastle();
-    LoopDetector detector(LoopDetector::Options{});
-    for (size_t i = 0; i < r.frames.size(); ++i) {
-      KeyframeInput in;
-      in.id = static_cast<int64_t>(i + 1);        // view number
-      in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
-      in.image = r.frames[i].image;
-      in.intrinsics = r.frames[i].intrinsics;
-      in.world_from_cam = Sim3d(r.frames[i].world_from_cam);
-      const LoopResult res = detector.Process(in);
-      std::printf("view %02lld: %-24s match=%lld matches=%d inliers=%d prior_err=%.1f\n",
-                  (long long)in.id, ToString(res.status), (long long)res.match_id, res.matches,
-                  res.inliers, res.rotation_error_vs_prior_deg);
-      if (res.detected()) r.loops.push_back(res);
-    }
-    return r;
-  }();
+  static const CastleRun run = RunCastle(LoopDetector::Options{});
   return run;
 }
 
@@ -53,34 +56,49 @@ TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
   const LoopResult& loop = run.loops[0];
   EXPECT_EQ(loop.query_id, 29);
   EXPECT_TRUE(loop.match_id == 1 || loop.match_id == 2) << loop.match_id;
+  // Monocular (no depths): the essential matrix detects, PnP against the local map triangulated
+  // around the match (raw = GT poses here) gives the pose, with its length.
+  ASSERT_EQ(loop.pose_kind, RelativePoseKind::kSE3Metric);
+  EXPECT_EQ(loop.method, VerificationMethod::kPnP);
+  EXPECT_GE(loop.local_map_inliers, 30);
+  const Rigid3d gt =
+      run.frames[loop.match_id - 1].world_from_cam.Inverse() * run.frames[28].world_from_cam;
+  const double rot_err = Deg(RotationAngle(gt.rotation, loop.match_from_query.rotation));
+  const double dir_err = AngleBetween(gt.translation, loop.match_from_query.translation);
+  const double centre_err = (loop.match_from_query.translation - gt.translation).norm();
+  std::printf(
+      "castle 29->%lld: inliers %d, local map %d points / %d inliers, rotation error %.2f deg, "
+      "direction error %.2f deg, translation %.3f m (GT %.3f m), error %.3f m\n",
+      (long long)loop.match_id, loop.inliers, loop.local_map_points, loop.local_map_inliers,
+      rot_err, dir_err, loop.match_from_query.translation.norm(), gt.translation.norm(),
+      centre_err);
+  EXPECT_LT(rot_err, 1.0);
+  EXPECT_LT(dir_err, 5.0);  // the target (two-view only: 18.5 deg, docs/DETECTOR.md)
+  EXPECT_LT(centre_err, 0.05 * gt.translation.norm() + 0.05);
+}
+
+// The two-view estimate alone (local map off): the rotation target holds, the direction
+// one does not (a 0.8 m baseline to 29 -> 01 against a facade 10-20 m away; the Huber-Sampson
+// optimum of its K = 300 inliers is itself 18 deg from the GT). Kept as the measured baseline of
+// what the local map buys.
+TEST(LoopDetectorReal, CastleTwoViewOnlyRotationAccurateDirectionNot) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  LoopDetector::Options o;
+  o.local_map.enabled = false;
+  const CastleRun run = RunCastle(o);
+  ASSERT_EQ(run.loops.size(), 1u);
+  const LoopResult& loop = run.loops[0];
   ASSERT_EQ(loop.pose_kind, RelativePoseKind::kSE3UnitTranslation);
   const Rigid3d gt =
       run.frames[loop.match_id - 1].world_from_cam.Inverse() * run.frames[28].world_from_cam;
   const double rot_err = Deg(RotationAngle(gt.rotation, loop.match_from_query.rotation));
   const double dir_err = AngleBetween(gt.translation, loop.match_from_query.translation);
-  std::printf("castle 29->%lld: inliers %d, rotation error %.2f deg, direction error %.2f deg\n",
+  std::printf("castle two-view 29->%lld: inliers %d, rotation error %.2f deg, direction %.2f deg\n",
               (long long)loop.match_id, loop.inliers, rot_err, dir_err);
-  EXPECT_LT(rot_err, 2.0);
-  // Levenberg-Marquardt + local optimisation of the essential matrix: 0.46 deg rotation error and
-  // 18.5 deg direction error (before: 1.94 / 41 deg with the undamped Gauss-Newton refinement).
-  // 18.5 deg is the optimum of these inliers: LM started AT the GT pose converges to it too.
+  EXPECT_EQ(loop.match_id, 1);
   EXPECT_LT(rot_err, 1.0);
+  EXPECT_GT(dir_err, 5.0);
   EXPECT_LT(dir_err, 25.0);
-}
-
-// KNOWN GAP (docs/DETECTOR.md): the translation direction of the 29 -> 1 loop is 18.5 deg off.
-// Not an estimator bug any more: the Huber-Sampson optimum of the 67 GT-consistent matches at
-// K = 300 is itself 18 deg from the GT (0.57 vs 0.61 px rms; at K = 1000, 217 inliers, 6 deg):
-// a 0.8 m baseline against a mostly planar facade 10-20 m away. Run with
-// --gtest_also_run_disabled_tests.
-TEST(LoopDetectorReal, DISABLED_CastleTranslationDirectionWithin5Deg) {
-  SL_REQUIRE_DATA("castle_p30_768");
-  const CastleRun& run = Castle();
-  ASSERT_FALSE(run.loops.empty());
-  const LoopResult& loop = run.loops[0];
-  const Rigid3d gt =
-      run.frames[loop.match_id - 1].world_from_cam.Inverse() * run.frames[28].world_from_cam;
-  EXPECT_LT(AngleBetween(gt.translation, loop.match_from_query.translation), 5.0);
 }
 
 class KittiNoLoop : public ::testing::Test {

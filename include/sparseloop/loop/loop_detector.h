@@ -16,6 +16,7 @@
 #include "sparseloop/features/informative_features.h"
 #include "sparseloop/matching/descriptor_matching.h"
 #include "sparseloop/matching/geometric_verification.h"
+#include "sparseloop/matching/triangulation.h"
 #include "sparseloop/retrieval/binary_ann_index.h"
 #include "sparseloop/search/search_area.h"
 
@@ -82,6 +83,11 @@ struct LoopResult {
   // p_in_match = match_from_query * p_in_query; see pose_kind for what is meaningful.
   Sim3d match_from_query;
   double rotation_error_vs_prior_deg = -1.0;  // -1 when no prior was available
+  // Local-map PnP (Options::local_map): points of the local map around match_id, and the PnP
+  // inliers among them, when it gave the pose (method kPnP, pose_kind kSE3Metric); 0 otherwise.
+  // `inliers` stays the two-view count that detected the loop.
+  int local_map_points = 0;
+  int local_map_inliers = 0;
   // Session of match_id: 0 = this detector's own keyframes (the current session); > 0 = an
   // earlier session loaded with AddPriorKeyframes (its id, e.g. the map's session id).
   int64_t match_session = 0;
@@ -140,6 +146,22 @@ class LoopDetector {
     // entry) and relocalised against every stored keyframe with a pose, all sessions. false:
     // such a keyframe is rejected with std::invalid_argument (the behaviour before relocalisation).
     bool relocalize_without_pose = true;
+    // Monocular loops (no depths on either side, a verified essential matrix): the query is
+    // verified again by PnP against a local map, the keypoints of the match and its neighbours
+    // triangulated with their raw relative poses (accurate between neighbours even when the
+    // trajectory has drifted). This is the paper's image-to-map step for a vSLAM that hands over
+    // no depths, as ORB-SLAM's loop closing does against its map points. It gives the
+    // translation with its length (match camera units, as depths would) instead of a direction,
+    // and stays well conditioned when the loop's own baseline is short (docs/DETECTOR.md,
+    // "Local-map PnP"). The two-view result is kept when PnP does not verify.
+    struct LocalMapOptions {
+      bool enabled = true;
+      int window = 2;      // keyframes each side of the match whose points enter the map, >= 0
+      int neighbours = 2;  // keyframes each side each map keyframe is triangulated with, >= 1
+      TriangulationOptions triangulation;
+      void Check() const;
+    };
+    LocalMapOptions local_map;
     uint64_t seed = 42;  // copied into verify.seed
     void Check() const;
     // The inlier threshold actually applied: max(verify.min_inliers, ceil(fraction * K)).
@@ -201,6 +223,11 @@ class LoopDetector {
   // Id, timestamp and the K informative features of `input` (no pose): Process and Relocalize.
   KeyframeRecord ExtractRecord(const KeyframeInput& input) const;
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
+  // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
+  // Returns the verification (success false when the map or PnP falls short); *map_points = size
+  // of the map.
+  VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
+                                           int* map_points) const;
 
   Options options_;
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
