@@ -745,8 +745,8 @@ def write_markdown(res, args, docs):
               f"{tm['accuracy_runs_s']:.0f} s, baselines {tm['baseline_runs_s']:.0f} s, "
               f"micro-benchmarks {tm['micro_s']:.0f} s; total {tm['total_s']:.0f} s "
               "(the Release build before it is not included).\n")
-    md.append("Reproduce: `scripts/benchmark --quick` (this file, under 10 minutes after the "
-              "build) or `scripts/benchmark` (full: KITTI 00/05/06/07 street worlds, the whole K "
+    md.append("Reproduce: `scripts/benchmark --quick` (this file; 10-18 minutes after the "
+              "build on the 2-core hosts it ran on, this run's time above) or `scripts/benchmark` (full: KITTI 00/05/06/07 street worlds, the whole K "
               "range, longer robustness curves; about an hour). Real-data sections need "
               "`../shared/data` (or `SPARSELOOP_DATA`).\n")
 
