@@ -82,6 +82,60 @@ TEST(Features, HighGradientMaskSelectsEdgesOnly) {
   EXPECT_EQ(cv::countNonZero(HighGradientMask(flat, o)), 0);
 }
 
+// HighGradientMask written the plain way (the definition in its header): central differences
+// truncated to integers, float magnitude, per-block median + offset, dilation.
+cv::Mat HighGradientMaskReference(const cv::Mat& gray, const GradientMaskOptions& o) {
+  cv::Mat mag(gray.size(), CV_8UC1, cv::Scalar(0));
+  for (int y = 1; y + 1 < gray.rows; ++y)
+    for (int x = 1; x + 1 < gray.cols; ++x) {
+      const int gx = (int(gray.at<uint8_t>(y, x + 1)) - int(gray.at<uint8_t>(y, x - 1))) / 2;
+      const int gy = (int(gray.at<uint8_t>(y + 1, x)) - int(gray.at<uint8_t>(y - 1, x))) / 2;
+      mag.at<uint8_t>(y, x) = static_cast<uint8_t>(std::sqrt(float(gx * gx + gy * gy)));
+    }
+  cv::Mat mask(gray.size(), CV_8UC1, cv::Scalar(0));
+  for (int by = 0; by < gray.rows; by += o.block_size)
+    for (int bx = 0; bx < gray.cols; bx += o.block_size) {
+      const cv::Rect r =
+          cv::Rect(bx, by, o.block_size, o.block_size) & cv::Rect(0, 0, gray.cols, gray.rows);
+      const cv::Mat block = mag(r);
+      std::vector<uint8_t> v(block.begin<uint8_t>(), block.end<uint8_t>());
+      std::sort(v.begin(), v.end());
+      const double median = v[(v.size() - 1) / 2];  // lower median, as the histogram walk
+      const cv::Mat sel = block > median + o.threshold_offset;
+      sel.copyTo(mask(r));
+    }
+  if (o.dilate_radius > 0) {
+    const int k = 2 * o.dilate_radius + 1;
+    cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k)));
+  }
+  return mask;
+}
+
+TEST(Features, HighGradientMaskSimdMatchesScalar) {
+  // Every width from 1 to 60 (the 16-pixel loop, its tail, rows shorter than one vector) and a
+  // KITTI-sized one; full-range noise reaches the largest gradients (|d| = 255).
+  cv::RNG rng(5);
+  GradientMaskOptions o;
+  o.block_size = 8;
+  for (int cols = 1; cols <= 60; ++cols) {
+    for (int blur : {0, 1}) {
+      cv::Mat img(23, cols, CV_8UC1);
+      rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+      if (blur) cv::GaussianBlur(img, img, cv::Size(3, 3), 0.8);
+      const cv::Mat diff = HighGradientMask(img, o) != HighGradientMaskReference(img, o);
+      ASSERT_EQ(cv::countNonZero(diff), 0) << cols << " columns, blur " << blur;
+    }
+  }
+  cv::Mat big(370, 1226, CV_8UC1);
+  rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(big, big, cv::Size(5, 5), 1.2);
+  const GradientMaskOptions d;
+  EXPECT_EQ(cv::countNonZero(HighGradientMask(big, d) != HighGradientMaskReference(big, d)), 0);
+  // A non-continuous input (a ROI: row stride > width).
+  const cv::Mat roi = big(cv::Rect(3, 5, 517, 200));
+  EXPECT_EQ(cv::countNonZero(HighGradientMask(roi, d) != HighGradientMaskReference(roi, d)), 0);
+}
+
 cv::Mat TexturedImage(uint64_t seed) {
   cv::Mat img(240, 320, CV_8UC1);
   cv::RNG rng(seed);
