@@ -61,6 +61,9 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(min_inlier_fraction_of_k >= 0 && min_inlier_fraction_of_k <= 1,
                "min_inlier_fraction_of_k must be in [0, 1], got {}", min_inlier_fraction_of_k);
   SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
+  SL_CHECK_MSG(std::isfinite(small_k_fraction) && small_k_fraction > 0 && small_k_fraction <= 1,
+               "small_k_fraction must be in (0, 1], got {}", small_k_fraction);
+  SL_CHECK_MSG(small_k_floor >= 5, "small_k_floor must be >= 5, got {}", small_k_floor);
   local_map.Check();
 }
 
@@ -70,10 +73,20 @@ void LoopDetector::Options::LocalMapOptions::Check() const {
   triangulation.Check();
 }
 
+namespace {
+int SmallKFloor(const LoopDetector::Options& o, int n) {
+  const int k = o.features.max_features;
+  return std::min(n,
+                  std::max(o.small_k_floor, static_cast<int>(std::ceil(o.small_k_fraction * k))));
+}
+}  // namespace
+
 int LoopDetector::Options::EffectiveMinInliers() const {
-  return std::max(verify.min_inliers,
+  return std::max(SmallKFloor(*this, verify.min_inliers),
                   static_cast<int>(std::ceil(min_inlier_fraction_of_k * features.max_features)));
 }
+
+int LoopDetector::Options::EffectiveMinMatches() const { return SmallKFloor(*this, min_matches); }
 
 LoopDetector::LoopDetector(Options options)
     : options_(std::move(options)), search_([&] {
@@ -332,8 +345,8 @@ void LoopDetector::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* re
 namespace {
 
 // Hamming matching of the query against each candidate record, then the candidates with at least
-// `min_matches` ranked by match count, then score, then `tie_key` (ascending). Both the in-session
-// search and the appearance-only pool matching use it, so they rank identically.
+// options.EffectiveMinMatches() ranked by match count, then score, then `tie_key` (ascending). Both
+// the in-session search and the appearance-only pool matching use it, so they rank identically.
 struct RankedCandidate {
   size_t entry;  // position in the candidate list
   std::vector<DescriptorMatch> matches;
@@ -351,6 +364,7 @@ CandidateRanking RankCandidates(const KeyframeRecord& query, size_t num_candidat
                                 RecordAt&& record_at, TieKey&& tie_key,
                                 const LoopDetector::Options& options) {
   CandidateRanking out;
+  const int min_matches = options.EffectiveMinMatches();
   for (size_t e = 0; e < num_candidates; ++e) {
     auto m = MatchDescriptors(query.descriptors, record_at(e).descriptors, options.match);
     const int n = static_cast<int>(m.size());
@@ -358,7 +372,7 @@ CandidateRanking RankCandidates(const KeyframeRecord& query, size_t num_candidat
       out.best_count = n;
       out.best_entry = e;
     }
-    if (n < options.min_matches) continue;
+    if (n < min_matches) continue;
     const double s = MatchScore(m, options.match.max_distance);
     out.ranked.push_back({e, std::move(m), s, tie_key(e)});
   }

@@ -202,6 +202,8 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     }
     d->Get("check_every", &o.check_every);
     d->Get("min_matches", &o.min_matches);
+    d->Get("small_k_fraction", &o.small_k_fraction);
+    d->Get("small_k_floor", &o.small_k_floor);
     d->Get("max_verify", &o.max_verify);
     d->Get("min_inlier_fraction_of_k", &o.min_inlier_fraction_of_k);
     d->Get("min_path_ratio", &o.min_path_ratio);
@@ -319,6 +321,8 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
               {"min_parallax_deg", d.local_map.triangulation.min_parallax_deg}}},
             {"check_every", d.check_every},
             {"min_matches", d.min_matches},
+            {"small_k_fraction", d.small_k_fraction},
+            {"small_k_floor", d.small_k_floor},
             {"max_verify", d.max_verify},
             {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
             {"min_path_ratio", d.min_path_ratio},

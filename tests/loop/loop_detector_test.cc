@@ -68,7 +68,24 @@ TEST(LoopDetector, OptionsCheck) {
   o.min_inlier_fraction_of_k = 0.2;
   EXPECT_EQ(o.EffectiveMinInliers(), 20);
   o.features.max_features = 15;
+  // Small K: ceil(0.4 * K), not below 8, not above the K >= 30 floors (12).
+  EXPECT_EQ(o.EffectiveMinInliers(), 8);
+  EXPECT_EQ(o.EffectiveMinMatches(), 8);
+  o.features.max_features = 25;
+  EXPECT_EQ(o.EffectiveMinInliers(), 10);
+  EXPECT_EQ(o.EffectiveMinMatches(), 10);
+  o.features.max_features = 30;
   EXPECT_EQ(o.EffectiveMinInliers(), o.verify.min_inliers);
+  EXPECT_EQ(o.EffectiveMinMatches(), o.min_matches);
+  o.features.max_features = 300;
+  o.min_inlier_fraction_of_k = 0.08;
+  EXPECT_EQ(o.EffectiveMinInliers(), 24);
+  EXPECT_EQ(o.EffectiveMinMatches(), 12);
+  o.small_k_floor = 4;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o = {};
+  o.small_k_fraction = 0;
+  EXPECT_THROW(o.Check(), std::invalid_argument);
 }
 
 TEST(LoopDetector, NoPoseNeedsGlobalSearchAndIdsAreUnique) {

@@ -118,6 +118,14 @@ class LoopDetector {
     // ceil(min_inlier_fraction_of_k * K)) inliers (more features = more chance inliers between
     // unrelated but similar-looking places). Fraction in [0, 1].
     double min_inlier_fraction_of_k = 0.08;
+    // Small K: a record of K features cannot reach 12 matches and 12 inliers with another view
+    // (K = 15 on rtabmap: at most ~5-10 survive), so below K = 30 both floors become
+    // ceil(small_k_fraction * K), never below small_k_floor (8: three matches beyond the
+    // five-point minimal sample). K >= min_matches / small_k_fraction keeps min_matches and
+    // verify.min_inliers. Measured in docs/DETECTOR.md ("Small K"). Fraction in (0, 1], floor
+    // >= 5.
+    double small_k_fraction = 0.4;
+    int small_k_floor = 8;
     // A candidate must be "far along the path": path length between it and the query >=
     // min_path_ratio * straight-line distance (scale-free; rejects the recent, still-overlapping
     // stretch of a forward motion). Needs poses; 0 disables. ratio >= 0.
@@ -164,8 +172,12 @@ class LoopDetector {
     LocalMapOptions local_map;
     uint64_t seed = 42;  // copied into verify.seed
     void Check() const;
-    // The inlier threshold actually applied: max(verify.min_inliers, ceil(fraction * K)).
+    // The inlier threshold actually applied: max(SmallK(verify.min_inliers),
+    // ceil(min_inlier_fraction_of_k * K)), SmallK(n) = min(n, max(small_k_floor,
+    // ceil(small_k_fraction * K))).
     int EffectiveMinInliers() const;
+    // The descriptor-match threshold actually applied: SmallK(min_matches).
+    int EffectiveMinMatches() const;
     static SearchAreaOptions DefaultSearch() {
       SearchAreaOptions s;
       s.exclude_recent = 10;
