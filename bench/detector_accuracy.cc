@@ -233,6 +233,7 @@ json Euroc(const fs::path& root) {
                   {"method", ToString(r.result.method)},
                   {"inliers", r.result.inliers},
                   {"matches", r.result.matches},
+                  {"planar_alternative", r.result.planar_alternative},
                   {"rotation_error_deg", r.rotation_error_deg},
                   {"translation_direction_error_deg", r.translation_direction_error_deg}};
       if (r.translation_error_m >= 0) row["translation_error_m"] = r.translation_error_m;

@@ -60,6 +60,10 @@ void LoopDetector::Options::Check() const {
                consistency_base_deg, consistency_per_keyframe_deg, consistency_max_deg);
   SL_CHECK_MSG(min_inlier_fraction_of_k >= 0 && min_inlier_fraction_of_k <= 1,
                "min_inlier_fraction_of_k must be in [0, 1], got {}", min_inlier_fraction_of_k);
+  SL_CHECK_MSG(std::isfinite(planar_alternative_tolerance) && planar_alternative_tolerance > 0 &&
+                   planar_alternative_tolerance <= 1,
+               "planar_alternative_tolerance must be in (0, 1], got {}",
+               planar_alternative_tolerance);
   SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
   SL_CHECK_MSG(std::isfinite(small_k_fraction) && small_k_fraction > 0 && small_k_fraction <= 1,
                "small_k_fraction must be in (0, 1], got {}", small_k_fraction);
@@ -625,10 +629,27 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
       if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {
         const Eigen::Quaterniond prior =
             match.world_from_cam.rotation.conjugate() * query.world_from_cam.rotation;
-        trial.rotation_error_vs_prior_deg =
-            RotationAngle(prior, v.match_from_query.rotation) * 180.0 / M_PI;
-        if (options_.check_consistency && trial.rotation_error_vs_prior_deg > tolerance_deg)
+        auto error_deg = [&](const Sim3d& pose) {
+          return RotationAngle(prior, pose.rotation) * 180.0 / M_PI;
+        };
+        trial.rotation_error_vs_prior_deg = error_deg(v.match_from_query);
+        if (options_.check_consistency && trial.rotation_error_vs_prior_deg > tolerance_deg) {
           trial_status = LoopStatus::kRejectedByConsistency;
+          if (options_.planar_alternatives && map_inliers == 0) {
+            for (const VerificationResult& alt :
+                 PlanarAlternatives(query, match, cand.matches, v, verify_)) {
+              const double err = error_deg(alt.match_from_query);
+              if (err > options_.planar_alternative_tolerance * tolerance_deg) continue;
+              trial.rotation_error_vs_prior_deg = err;
+              trial.inliers = alt.inliers;
+              trial.score = static_cast<double>(alt.inliers) / options_.features.max_features;
+              trial.match_from_query = alt.match_from_query;
+              trial.planar_alternative = true;
+              trial_status = LoopStatus::kDetected;
+              break;
+            }
+          }
+        }
       }
       if (trial_status == LoopStatus::kDetected && options_.temporal_check) {
         const bool confirmed =

@@ -1,5 +1,6 @@
 #include "sparseloop/matching/geometric_verification.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -224,6 +225,106 @@ void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
   result->pose_kind = RelativePoseKind::kSE3Metric;
 }
 
+// The matches of a pair without depths as normalised image points, both as OpenCV points (for
+// the RANSAC estimators) and as homogeneous vectors (for the refinement).
+struct TwoViewData {
+  std::vector<cv::Point2f> pts_match, pts_query;
+  std::vector<Eigen::Vector3d> all_m, all_q;
+  double threshold = 0;  // inlier threshold, normalised units
+};
+
+TwoViewData MakeTwoViewData(const KeyframeRecord& query, const KeyframeRecord& match,
+                            const std::vector<DescriptorMatch>& matches, double threshold) {
+  TwoViewData d;
+  d.threshold = threshold;
+  for (const auto& m : matches) {
+    const CompactKeypoint& km = match.keypoints[m.train];
+    const CompactKeypoint& kq = query.keypoints[m.query];
+    d.pts_match.emplace_back(km.x, km.y);
+    d.pts_query.emplace_back(kq.x, kq.y);
+    d.all_m.emplace_back(km.x, km.y, 1.0);
+    d.all_q.emplace_back(kq.x, kq.y, 1.0);
+  }
+  return d;
+}
+
+// query_from_match: x_query = R x_match + t, |t| = 1.
+struct TwoViewModel {
+  Eigen::Matrix3d r;
+  Eigen::Vector3d t;
+};
+
+std::vector<uint8_t> InlierMask(const TwoViewData& d, const TwoViewModel& mdl) {
+  const Eigen::Matrix3d e = Hat(mdl.t) * mdl.r;
+  std::vector<uint8_t> in(d.all_m.size());
+  for (size_t i = 0; i < in.size(); ++i)
+    in[i] = std::abs(Sampson(e, d.all_m[i], d.all_q[i])) < d.threshold ? 1 : 0;
+  return in;
+}
+
+// Local optimisation (LO-RANSAC style): refine (R, t) on the inliers, re-select the inliers among
+// ALL matches with the refined model, repeat until the set is stable. Returns the inlier mask.
+std::vector<uint8_t> LocallyOptimise(const TwoViewData& d, int rounds, TwoViewModel* mdl) {
+  std::vector<uint8_t> cur = InlierMask(d, *mdl);
+  for (int round = 0; round < rounds; ++round) {
+    std::vector<Eigen::Vector3d> xm, xq;
+    for (size_t i = 0; i < cur.size(); ++i) {
+      if (!cur[i]) continue;
+      xm.push_back(d.all_m[i]);
+      xq.push_back(d.all_q[i]);
+    }
+    RefineEssential(xm, xq, d.threshold, &mdl->r, &mdl->t);
+    const std::vector<uint8_t> now = InlierMask(d, *mdl);
+    const bool changed = now != cur;
+    cur = now;
+    if (!changed) break;
+  }
+  return cur;
+}
+
+// The decomposition of the refined essential matrix with most inliers in front of both cameras
+// (recoverPose), then a cheirality check per inlier; fills inliers, inlier_matches, pose_kind and
+// match_from_query (unit translation) of `result`.
+void FinishTwoView(const TwoViewData& d, const TwoViewModel& mdl, std::vector<uint8_t> in,
+                   VerificationResult* result) {
+  const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
+  cv::Mat r_cv, t_cv;
+  cv::Mat e_cv(3, 3, CV_64F);
+  const Eigen::Matrix3d e_ref = Hat(mdl.t) * mdl.r;
+  for (int y = 0; y < 3; ++y)
+    for (int x = 0; x < 3; ++x) e_cv.at<double>(y, x) = e_ref(y, x);
+  cv::Mat in_mask(static_cast<int>(in.size()), 1, CV_8U);
+  for (size_t i = 0; i < in.size(); ++i) in_mask.at<uint8_t>(int(i)) = in[i] ? 255 : 0;
+  cv::recoverPose(e_cv, d.pts_match, d.pts_query, eye, r_cv, t_cv, in_mask);
+  const Sim3d query_from_match = FromCv(r_cv, t_cv);
+  // Cheirality of each inlier under the chosen decomposition: d_q x_q = d_m R x_m + t. A point
+  // seen with parallax clearly above the noise must lie in front of both cameras; points with
+  // less parallax (far away, or a near-pure rotation) carry no depth sign and stay inliers
+  // (recoverPose's own count drops every point farther than 50 baselines).
+  const Eigen::Matrix3d rr = query_from_match.rotation.toRotationMatrix();
+  const Eigen::Vector3d tt = query_from_match.translation.normalized();
+  for (size_t i = 0; i < in.size(); ++i) {
+    if (!in[i]) continue;
+    const Eigen::Vector3d a = (rr * d.all_m[i]).normalized();
+    const Eigen::Vector3d b = d.all_q[i].normalized();
+    if (a.cross(b).norm() < 4.0 * d.threshold) continue;  // parallax below ~4 thresholds
+    Eigen::Matrix<double, 3, 2> m;
+    m.col(0) = a;
+    m.col(1) = -b;
+    const Eigen::Vector2d depth = m.colPivHouseholderQr().solve(-tt);
+    if (depth(0) <= 0 || depth(1) <= 0) in[i] = 0;
+  }
+  result->inlier_matches.clear();
+  for (size_t i = 0; i < in.size(); ++i)
+    if (in[i]) result->inlier_matches.push_back(static_cast<int>(i));
+  result->inliers = static_cast<int>(result->inlier_matches.size());
+  Sim3d match_from_query = query_from_match.Inverse();
+  const double n = match_from_query.translation.norm();
+  if (n > 0) match_from_query.translation /= n;
+  result->match_from_query = match_from_query;
+  result->pose_kind = RelativePoseKind::kSE3UnitTranslation;
+}
+
 }  // namespace
 
 VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord& match,
@@ -288,16 +389,12 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
     return result;
   }
 
-  std::vector<cv::Point2f> pts_match, pts_query;
-  for (const auto& m : matches) {
-    pts_match.emplace_back(match.keypoints[m.train].x, match.keypoints[m.train].y);
-    pts_query.emplace_back(query.keypoints[m.query].x, query.keypoints[m.query].y);
-  }
+  const TwoViewData data = MakeTwoViewData(query, match, matches, threshold);
   if (options.use_fundamental) {
     result.method = VerificationMethod::kFundamental;
     if (matches.size() < 8) return result;
     cv::Mat mask;
-    cv::Mat f = cv::findFundamentalMat(pts_match, pts_query, cv::FM_RANSAC, threshold,
+    cv::Mat f = cv::findFundamentalMat(data.pts_match, data.pts_query, cv::FM_RANSAC, threshold,
                                        options.confidence, options.max_iterations, mask);
     if (f.empty() || mask.empty()) return result;
     for (int i = 0; i < mask.rows; ++i)
@@ -311,116 +408,80 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
   if (matches.size() < 5) return result;
   cv::Mat mask;
   const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
-  cv::Mat e = cv::findEssentialMat(pts_match, pts_query, eye, cv::RANSAC, options.confidence,
-                                   threshold, options.max_iterations, mask);
+  cv::Mat e = cv::findEssentialMat(data.pts_match, data.pts_query, eye, cv::RANSAC,
+                                   options.confidence, threshold, options.max_iterations, mask);
   if (e.empty() || e.rows < 3 || mask.empty()) return result;
   cv::Mat r_cv, t_cv;
   // recoverPose keeps the inliers in front of both cameras; x_query = R x_match + t.
-  cv::recoverPose(e.rowRange(0, 3), pts_match, pts_query, eye, r_cv, t_cv, mask);
-  std::vector<Eigen::Vector3d> all_m, all_q;
-  for (size_t i = 0; i < matches.size(); ++i) {
-    all_m.emplace_back(pts_match[i].x, pts_match[i].y, 1.0);
-    all_q.emplace_back(pts_query[i].x, pts_query[i].y, 1.0);
-  }
-  // Starting models (only the RANSAC one for now; the structure allows more, e.g. homography
-  // decompositions, measured in docs/DETECTOR.md). Each is locally optimised, lowest MSAC wins.
-  struct Model {
-    Eigen::Matrix3d r;
-    Eigen::Vector3d t;
-  };
-  std::vector<Model> starts;
-  {
-    const Sim3d q_from_m = FromCv(r_cv, t_cv);
-    starts.push_back({q_from_m.rotation.toRotationMatrix(), q_from_m.translation.normalized()});
-  }
-  const double thr2 = threshold * threshold;
-  auto msac = [&](const Model& mdl) {
-    const Eigen::Matrix3d em = Hat(mdl.t) * mdl.r;
-    double c = 0;
-    for (size_t i = 0; i < matches.size(); ++i) {
-      const double s = Sampson(em, all_m[i], all_q[i]);
-      c += std::min(s * s, thr2);
-    }
-    return c;
-  };
-  std::vector<uint8_t> in(matches.size());
-  Model best{};
-  double best_cost = std::numeric_limits<double>::infinity();
-  for (size_t k = 0; k < starts.size(); ++k) {
-    Model mdl = starts[k];
-    // Local optimisation (LO-RANSAC style): refine (R, t) on the inliers, re-select the inliers
-    // among ALL matches with the refined model, repeat until the set is stable.
-    std::vector<uint8_t> cur(matches.size());
-    {
-      const Eigen::Matrix3d e0 = Hat(mdl.t) * mdl.r;
-      for (size_t i = 0; i < matches.size(); ++i)
-        cur[i] = std::abs(Sampson(e0, all_m[i], all_q[i])) < threshold ? 1 : 0;
-    }
-    for (int round = 0; round < options.local_optimization_rounds; ++round) {
-      std::vector<Eigen::Vector3d> xm, xq;
-      for (size_t i = 0; i < matches.size(); ++i) {
-        if (!cur[i]) continue;
-        xm.push_back(all_m[i]);
-        xq.push_back(all_q[i]);
-      }
-      RefineEssential(xm, xq, threshold, &mdl.r, &mdl.t);
-      const Eigen::Matrix3d e_ref = Hat(mdl.t) * mdl.r;
-      bool changed = false;
-      for (size_t i = 0; i < matches.size(); ++i) {
-        const uint8_t now = std::abs(Sampson(e_ref, all_m[i], all_q[i])) < threshold ? 1 : 0;
-        changed |= now != cur[i];
-        cur[i] = now;
-      }
-      if (!changed) break;
-    }
-    const double c = msac(mdl);
-    if (c < best_cost) {
-      best_cost = c;
-      best = mdl;
-      in = cur;
-    }
-  }
-  Sim3d query_from_match;
-  {
-    cv::Mat e_cv(3, 3, CV_64F);
-    const Eigen::Matrix3d e_ref = Hat(best.t) * best.r;
-    for (int y = 0; y < 3; ++y)
-      for (int x = 0; x < 3; ++x) e_cv.at<double>(y, x) = e_ref(y, x);
-    cv::Mat in_mask(static_cast<int>(matches.size()), 1, CV_8U);
-    for (size_t i = 0; i < matches.size(); ++i) in_mask.at<uint8_t>(int(i)) = in[i] ? 255 : 0;
-    // recoverPose picks the decomposition of E with most inliers in front of both cameras.
-    cv::recoverPose(e_cv, pts_match, pts_query, eye, r_cv, t_cv, in_mask);
-    query_from_match = FromCv(r_cv, t_cv);
-  }
-  // Cheirality of each inlier under the chosen decomposition: d_q x_q = d_m R x_m + t. A point
-  // seen with parallax clearly above the noise must lie in front of both cameras; points with
-  // less parallax (far away, or a near-pure rotation) carry no depth sign and stay inliers
-  // (recoverPose's own count drops every point farther than 50 baselines).
-  {
-    const Eigen::Matrix3d rr = query_from_match.rotation.toRotationMatrix();
-    const Eigen::Vector3d tt = query_from_match.translation.normalized();
-    for (size_t i = 0; i < matches.size(); ++i) {
-      if (!in[i]) continue;
-      const Eigen::Vector3d a = (rr * all_m[i]).normalized();
-      const Eigen::Vector3d b = all_q[i].normalized();
-      if (a.cross(b).norm() < 4.0 * threshold) continue;  // parallax below ~4 thresholds
-      Eigen::Matrix<double, 3, 2> m;
-      m.col(0) = a;
-      m.col(1) = -b;
-      const Eigen::Vector2d d = m.colPivHouseholderQr().solve(-tt);
-      if (d(0) <= 0 || d(1) <= 0) in[i] = 0;
-    }
-  }
-  for (size_t i = 0; i < matches.size(); ++i)
-    if (in[i]) result.inlier_matches.push_back(static_cast<int>(i));
-  result.inliers = static_cast<int>(result.inlier_matches.size());
-  Sim3d match_from_query = query_from_match.Inverse();
-  const double n = match_from_query.translation.norm();
-  if (n > 0) match_from_query.translation /= n;
-  result.match_from_query = match_from_query;
-  result.pose_kind = RelativePoseKind::kSE3UnitTranslation;
+  cv::recoverPose(e.rowRange(0, 3), data.pts_match, data.pts_query, eye, r_cv, t_cv, mask);
+  const Sim3d q_from_m = FromCv(r_cv, t_cv);
+  TwoViewModel model{q_from_m.rotation.toRotationMatrix(), q_from_m.translation.normalized()};
+  // Local optimisation of the RANSAC model. Other starts (homography decompositions) are not
+  // mixed in here: on castle 29 -> 02 the wrong one of two equally supported planar models has
+  // the lower MSAC cost (docs/DETECTOR.md); PlanarAlternatives offers them separately.
+  std::vector<uint8_t> in = LocallyOptimise(data, options.local_optimization_rounds, &model);
+  FinishTwoView(data, model, in, &result);
   result.success = accept(result.inliers);
   return result;
+}
+
+std::vector<VerificationResult> PlanarAlternatives(const KeyframeRecord& query,
+                                                   const KeyframeRecord& match,
+                                                   const std::vector<DescriptorMatch>& matches,
+                                                   const VerificationResult& primary,
+                                                   const VerifyOptions& options) {
+  options.Check();
+  std::vector<VerificationResult> out;
+  if (primary.method != VerificationMethod::kEssential ||
+      primary.pose_kind != RelativePoseKind::kSE3UnitTranslation || matches.size() < 8) {
+    return out;
+  }
+  const float focal = std::max(1.0f, 0.5f * (query.focal_px + match.focal_px));
+  const double threshold = options.threshold_px / focal;
+  cv::theRNG().state = options.seed;
+  const TwoViewData data = MakeTwoViewData(query, match, matches, threshold);
+  cv::Mat h_mask;
+  const cv::Mat h = cv::findHomography(data.pts_match, data.pts_query, cv::RANSAC, threshold,
+                                       h_mask, options.max_iterations, options.confidence);
+  if (h.empty() || h_mask.empty() || cv::countNonZero(h_mask) < options.min_inliers) return out;
+  std::vector<cv::Mat> rotations, translations, normals;
+  // Normalised coordinates: the camera matrix is the identity. x_query ~ (R + t n^T / d) x_match.
+  cv::decomposeHomographyMat(h, cv::Mat::eye(3, 3, CV_64F), rotations, translations, normals);
+  std::vector<Eigen::Matrix3d> seen = {primary.match_from_query.rotation.toRotationMatrix()};
+  for (size_t k = 0; k < rotations.size(); ++k) {
+    Eigen::Vector3d t;
+    cv::cv2eigen(translations[k], t);
+    if (t.norm() < 1e-9) continue;  // a pure rotation has no essential matrix
+    const Sim3d q_from_m = FromCv(rotations[k], translations[k]);
+    TwoViewModel model{q_from_m.rotation.toRotationMatrix(), t.normalized()};
+    // The decomposition as it is, not refined as an essential matrix: on near-planar inliers
+    // the essential matrix is ill-conditioned and the refinement slides along the plane's
+    // ambiguity (EuRoC pair (2,3): 2.37 deg from the GT unrefined, 3.06 deg refined).
+    const std::vector<uint8_t> in = InlierMask(data, model);
+    VerificationResult alt;
+    alt.method = VerificationMethod::kEssential;
+    alt.matches = static_cast<int>(matches.size());
+    FinishTwoView(data, model, in, &alt);
+    if (alt.inliers < options.min_inliers ||
+        alt.inliers < options.min_inlier_ratio * static_cast<double>(matches.size())) {
+      continue;
+    }
+    // Distinct from the primary and from each other (the decompositions come in +-t pairs and
+    // several starts converge to one optimum).
+    const Eigen::Matrix3d r = alt.match_from_query.rotation.toRotationMatrix();
+    bool duplicate = false;
+    for (const Eigen::Matrix3d& s : seen)
+      duplicate |= RotationAngle(Eigen::Quaterniond(s), Eigen::Quaterniond(r)) < 0.5 * M_PI / 180;
+    if (duplicate) continue;
+    seen.push_back(r);
+    alt.success = true;
+    out.push_back(std::move(alt));
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const VerificationResult& a, const VerificationResult& b) {
+                     return a.inliers > b.inliers;
+                   });
+  return out;
 }
 
 }  // namespace sparseloop

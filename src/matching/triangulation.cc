@@ -34,6 +34,7 @@ TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
     // Point X in the record's camera frame maps to the neighbour's as s R X + t.
     const Sim3d n_from_r = n->world_from_cam.Inverse() * record.world_from_cam;
     const Eigen::Matrix3d sr = n_from_r.scale * n_from_r.rotation.toRotationMatrix();
+    const Eigen::Matrix3d sr_inv = sr.inverse();  // once per neighbour, not per match
     const Eigen::Vector3d t = n_from_r.translation;
     if (t.norm() <= 0) continue;  // no baseline
     for (const DescriptorMatch& m :
@@ -57,8 +58,8 @@ TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
       if (x_n.z() <= 0) continue;
       // Reprojection in both views: each ray's point into the other view.
       const double err_n = (x_n.head<2>() / x_n.z() - fn.head<2>()).norm();
-      const Eigen::Vector3d y_n = d(1) * fn;                 // neighbour's point
-      const Eigen::Vector3d y_r = sr.inverse() * (y_n - t);  // in the record's frame
+      const Eigen::Vector3d y_n = d(1) * fn;           // neighbour's point
+      const Eigen::Vector3d y_r = sr_inv * (y_n - t);  // in the record's frame
       if (y_r.z() <= 0) continue;
       const double err_r = (y_r.head<2>() / y_r.z() - fr.head<2>()).norm();
       if (err_n > max_err || err_r > max_err) continue;

@@ -208,6 +208,8 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     d->Get("min_inlier_fraction_of_k", &o.min_inlier_fraction_of_k);
     d->Get("min_path_ratio", &o.min_path_ratio);
     d->Get("check_consistency", &o.check_consistency);
+    d->Get("planar_alternatives", &o.planar_alternatives);
+    d->Get("planar_alternative_tolerance", &o.planar_alternative_tolerance);
     d->Get("consistency_base_deg", &o.consistency_base_deg);
     d->Get("consistency_per_keyframe_deg", &o.consistency_per_keyframe_deg);
     d->Get("consistency_max_deg", &o.consistency_max_deg);
@@ -327,6 +329,8 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
             {"min_path_ratio", d.min_path_ratio},
             {"check_consistency", d.check_consistency},
+            {"planar_alternatives", d.planar_alternatives},
+            {"planar_alternative_tolerance", d.planar_alternative_tolerance},
             {"consistency_base_deg", d.consistency_base_deg},
             {"consistency_per_keyframe_deg", d.consistency_per_keyframe_deg},
             {"consistency_max_deg", d.consistency_max_deg},

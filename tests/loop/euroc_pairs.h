@@ -147,7 +147,7 @@ struct EurocPairResult {
 // Pair 0 = images (0, 1), pair 1 = images (2, 3); match first, then the query. `stereo`: the
 // keyframes carry the stereo-mapped pixels and depths (a stereo / RGB-D vSLAM's input).
 inline EurocPairResult RunEurocPair(const std::filesystem::path& root, int pair,
-                                    bool stereo = false) {
+                                    bool stereo = false, bool planar_alternatives = true) {
   const CameraIntrinsics k = EurocIntrinsics(0);
   const std::vector<Rigid3d> gt = {
       EurocCam(0.338337, 0.608466, -0.535476, 0.478082, 1.573832, 2.023348, 1.738755),
@@ -159,6 +159,7 @@ inline EurocPairResult RunEurocPair(const std::filesystem::path& root, int pair,
   options.search.strategy = SearchStrategy::kGlobal;
   options.search.exclude_recent = 0;
   options.min_path_ratio = 0;
+  options.planar_alternatives = planar_alternatives;
   LoopDetector detector(options);
   EurocPairResult out;
   for (int i : {m, q}) {

@@ -88,6 +88,9 @@ struct LoopResult {
   // `inliers` stays the two-view count that detected the loop.
   int local_map_points = 0;
   int local_map_inliers = 0;
+  // The pose is a planar alternative (Options::planar_alternatives), not the lowest-cost
+  // two-view model, which the consistency check rejected; `inliers` are the alternative's.
+  bool planar_alternative = false;
   // Session of match_id: 0 = this detector's own keyframes (the current session); > 0 = an
   // earlier session loaded with AddPriorKeyframes (its id, e.g. the map's session id).
   int64_t match_session = 0;
@@ -136,6 +139,21 @@ class LoopDetector {
     double consistency_base_deg = 10.0;
     double consistency_per_keyframe_deg = 0.1;
     double consistency_max_deg = 45.0;
+    // Planar scenes (monocular two-view loops only, when the local map gave no pose): when the
+    // lowest-cost essential-matrix pose fails the consistency check, the other poses the same
+    // matches support (PlanarAlternatives: a homography's decompositions, each refined as an
+    // essential matrix) are tried against the same check, most inliers first; the first that
+    // passes with the usual inlier floor is the loop (LoopResult::planar_alternative). Near a
+    // plane, two-view geometry has two supported solutions and the lower cost is not always the
+    // true one; the pose prior decides between them (docs/DETECTOR.md, "Planar alternatives").
+    bool planar_alternatives = true;
+    // An alternative must agree with the prior within this fraction of the consistency tolerance:
+    // choosing among several hypotheses by the prior raises the chance that a false pair passes;
+    // the chance that a random rotation lies within an angle grows with its cube, so at 0.4 each
+    // of the (at most 3) alternatives adds ~6 % of the primary's chance. castle 29 -> 02 (not
+    // planar) has alternatives 5.4 / 7.4 deg from the GT prior (tolerance 12.8 -> 5.1 deg, both
+    // rejected), EuRoC pair (2,3) one 2.4 deg off (10.1 -> 4.0 deg, accepted). In (0, 1].
+    double planar_alternative_tolerance = 0.4;
     // Temporal consistency: accept only when the previous check keyframe also verified a match
     // within temporal_window keyframes (by index) of this match.
     bool temporal_check = false;

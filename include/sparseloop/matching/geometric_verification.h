@@ -54,4 +54,19 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
                               const std::vector<DescriptorMatch>& matches,
                               const VerifyOptions& options);
 
+// Other two-view poses the same matches support, for a pair VerifyPair verified by the essential
+// matrix (no depths): a homography is fitted to the matches (RANSAC, seeded) and each of its
+// decompositions is refined as an essential matrix on all matches, exactly as VerifyPair refines
+// its RANSAC model. In a near-planar scene two-view geometry is ambiguous: the lowest-cost model
+// and another one (the plane's twin) are both supported, and the lowest cost may be the wrong one
+// (EuRoC pair (2,3): 21 deg off the GT, the homography's twin 1-2 deg; docs/DETECTOR.md). Returns
+// the models that pass min_inliers / min_inlier_ratio and differ from `primary`'s rotation (and
+// from each other) by >= 0.5 deg, most inliers first; empty for any other method. The caller
+// decides with independent evidence (the loop detector: the pose prior) whether to use one.
+std::vector<VerificationResult> PlanarAlternatives(const KeyframeRecord& query,
+                                                   const KeyframeRecord& match,
+                                                   const std::vector<DescriptorMatch>& matches,
+                                                   const VerificationResult& primary,
+                                                   const VerifyOptions& options);
+
 }  // namespace sparseloop
