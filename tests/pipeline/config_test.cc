@@ -26,7 +26,8 @@ TEST(Config, AppliesKnownKeys) {
   ApplyConfig(nlohmann::json::parse(R"({
       "detector": {"features": {"max_features": 15, "ranking": "popcount"},
                    "search": {"strategy": "radius", "radius": 7.5, "plane_normal": [0, 1, 0]},
-                   "check_every": 5, "seed": 7},
+                   "check_every": 5, "seed": 7, "planar_alternatives": false,
+                   "planar_alternative_tolerance": 0.3},
       "optimizer": {"rejection": "switchable", "loop_loss": "huber"},
       "vertex_type": "se3"})"),
               "cfg.json", &o);
@@ -37,6 +38,8 @@ TEST(Config, AppliesKnownKeys) {
   ASSERT_TRUE(o.detector.search.plane_normal.has_value());
   EXPECT_EQ(*o.detector.search.plane_normal, Eigen::Vector3d(0, 1, 0));
   EXPECT_EQ(o.detector.check_every, 5);
+  EXPECT_FALSE(o.detector.planar_alternatives);
+  EXPECT_DOUBLE_EQ(o.detector.planar_alternative_tolerance, 0.3);
   EXPECT_EQ(o.detector.verify.seed, 7u);
   EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kSwitchable);
   EXPECT_EQ(o.optimizer.loop_loss, RobustLoss::kHuber);
@@ -48,6 +51,8 @@ TEST(Config, RoundTripsThroughJson) {
   a.detector.features.max_features = 23;
   a.detector.search.drift_tolerance = 0.03;
   a.optimizer.rejection = OutlierRejection::kNone;
+  a.detector.planar_alternatives = false;
+  a.detector.planar_alternative_tolerance = 0.25;
   PipelineOptions b;
   ApplyConfig(ConfigToJson(a), "roundtrip", &b);
   EXPECT_EQ(ConfigToJson(a), ConfigToJson(b));
@@ -65,6 +70,9 @@ TEST(Config, UnknownKeyWrongTypeAndBadValueNameTheKey) {
             std::string::npos);
   EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"features": {"max_features": -4}}})"))
                 .find("valid option values"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"planar_alternative_tolerance": 1.5}})"))
+                .find("planar_alternative_tolerance must be in (0, 1]"),
             std::string::npos);
   EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"search": {"plane_normal": [1, 2]}}})"))
                 .find("an array of 3 numbers"),
