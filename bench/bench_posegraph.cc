@@ -112,6 +112,34 @@ void EdgeJacobian(benchmark::State& state, bool analytic) {
     benchmark::DoNotOptimize(ja[0]);
   }
 }
+// PCM when one loop arrives in a graph that already has `loops` loops (what every background
+// re-solve does): arg 1 = 0 evaluates every pair again (PcmConsistentLoops), 1 only the new
+// loop's pairs (PcmConsistentLoopsIncremental, what Optimize uses). Same clique either way.
+void BM_PcmNewLoop(benchmark::State& state) {
+  const int num_loops = static_cast<int>(state.range(0));
+  const bool incremental = state.range(1) != 0;
+  const Graph g = MakeGraph(20000, num_loops + 1);
+  PoseGraph graph = BuildOdometryGraph(g.ids, g.raw, VertexType::kSim3);
+  for (int k = 0; k < num_loops; ++k) graph.AddLoop(g.loops[k]);
+  const PcmOptions options;
+  graph.PcmConsistentLoopsIncremental(options);  // the cache of the earlier solves
+  size_t kept = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    PoseGraph trial = graph;  // the graph before the new loop, cache included
+    trial.AddLoop(g.loops[num_loops]);
+    state.ResumeTiming();
+    kept = incremental ? trial.PcmConsistentLoopsIncremental(options).size()
+                       : trial.PcmConsistentLoops(options).size();
+    benchmark::DoNotOptimize(kept);
+  }
+  state.counters["kept"] = static_cast<double>(kept);
+}
+BENCHMARK(BM_PcmNewLoop)
+    ->ArgsProduct({{500, 2000}, {0, 1}})
+    ->ArgNames({"loops", "incremental"})
+    ->Unit(benchmark::kMillisecond);
+
 void BM_EdgeJacobianAutodiff(benchmark::State& state) { EdgeJacobian(state, false); }
 void BM_EdgeJacobianAnalytic(benchmark::State& state) { EdgeJacobian(state, true); }
 BENCHMARK(BM_EdgeJacobianAutodiff);

@@ -171,10 +171,12 @@ class CliqueFinder {
 
 }  // namespace
 
-std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) const {
-  options.Check();
+void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
+                                   std::vector<std::vector<bool>>* adj) const {
   const size_t n = loops_.size();
-  if (n == 0) return {};
+  adj->resize(n);
+  for (auto& row : *adj) row.resize(n, false);
+  if (from >= n) return;
   // Prefix sums over the raw trajectory (vertex insertion order) for the chain covariance:
   //  sum of squared step lengths, sum of positions, sum of squared position norms.
   const size_t m = ids_.size();
@@ -218,14 +220,16 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
     if (!loop.has_scale) cov[6] = std::numeric_limits<double>::infinity();
     return cov;
   };
-  std::vector<std::vector<bool>> adj(n, std::vector<bool>(n, false));
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
+  // Only pairs with at least one loop in [from, n): the others were computed before and cannot
+  // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
+  // raw poses up to its own vertices).
   for (size_t a = 0; a < n; ++a) {
     const LoopConstraint& la = loops_[a];
     const size_t qa = Index(la.query_id), ma = Index(la.match_id);
     const Eigen::Matrix<double, 7, 1> cov_a = loop_cov(la);
-    for (size_t b = a + 1; b < n; ++b) {
+    for (size_t b = std::max(a + 1, from); b < n; ++b) {
       const LoopConstraint& lb = loops_[b];
       const size_t qb = Index(lb.query_id), mb = Index(lb.match_id);
       // ma_from_qa * qa_from_qb * qb_from_mb * mb_from_ma == identity for consistent loops.
@@ -244,14 +248,51 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
         ++dof;
       }
       const bool consistent = dof == 0 || chi2 <= thresholds[dof];
-      adj[a][b] = adj[b][a] = consistent;
+      (*adj)[a][b] = (*adj)[b][a] = consistent;
     }
   }
+}
+
+namespace {
+
+std::vector<size_t> MaximumClique(const std::vector<std::vector<bool>>& adj,
+                                  const PcmOptions& options) {
   CliqueFinder finder(adj);
   std::vector<size_t> clique = finder.Greedy();
-  if (n <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
+  if (adj.size() <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
   std::sort(clique.begin(), clique.end());
   return clique;
+}
+
+// The options the pairwise test depends on (max_exact_clique only affects the clique search).
+bool SameConsistencyTest(const PcmOptions& a, const PcmOptions& b) {
+  return a.confidence == b.confidence &&
+         a.step_translation_fraction == b.step_translation_fraction &&
+         a.step_rotation_sigma_rad == b.step_rotation_sigma_rad &&
+         a.step_scale_sigma == b.step_scale_sigma;
+}
+
+}  // namespace
+
+std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) const {
+  options.Check();
+  if (loops_.empty()) return {};
+  std::vector<std::vector<bool>> adj;
+  ExtendPcmAdjacency(options, 0, &adj);
+  return MaximumClique(adj, options);
+}
+
+std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& options) {
+  options.Check();
+  if (loops_.empty()) return {};
+  if (!pcm_cache_.valid || !SameConsistencyTest(pcm_cache_.options, options)) {
+    pcm_cache_ = PcmCache{};
+    pcm_cache_.valid = true;
+    pcm_cache_.options = options;
+  }
+  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj);
+  pcm_cache_.loops = loops_.size();
+  return MaximumClique(pcm_cache_.adj, options);
 }
 
 }  // namespace sparseloop

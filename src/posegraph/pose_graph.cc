@@ -353,7 +353,7 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
       options.rejection == OutlierRejection::kPcmAndSwitchable) {
     Timer timer;
     std::fill(use_loop.begin(), use_loop.end(), false);
-    for (size_t i : PcmConsistentLoops(options.pcm)) use_loop[i] = true;
+    for (size_t i : PcmConsistentLoopsIncremental(options.pcm)) use_loop[i] = true;
     summary.rejection_seconds = timer.ElapsedMs() / 1000.0;
   }
   const bool switchable = options.rejection == OutlierRejection::kSwitchable ||

@@ -1,5 +1,7 @@
 // Pose graph on synthetic drifting trajectories with ground truth, outlier loops, g2o parsing,
 // interpolation of non-keyframe poses and the direction-only loop constraint.
+#include <algorithm>
+#include <numeric>
 #include <sstream>
 
 #include "loop_harness.h"
@@ -61,13 +63,20 @@ PoseGraphOptions Plain() {
   return o;
 }
 
-TEST(PoseGraph, CorrectsSyntheticSim3DriftWithLoops) {
-  const Synthetic s = MakeSynthetic(150, 2.3, 1);
-  auto rng = test::SeededRng(11);
+// Loops between GT revisits within 3 m, at least 100 keyframes apart (the synthetic laps).
+test::LoopHarnessOptions Revisits(int64_t query_stride, double outlier_fraction) {
   test::LoopHarnessOptions ho;
   ho.distance = 3.0;
   ho.min_gap = 100;
-  ho.query_stride = 5;
+  ho.query_stride = query_stride;
+  ho.outlier_fraction = outlier_fraction;
+  return ho;
+}
+
+TEST(PoseGraph, CorrectsSyntheticSim3DriftWithLoops) {
+  const Synthetic s = MakeSynthetic(150, 2.3, 1);
+  auto rng = test::SeededRng(11);
+  const test::LoopHarnessOptions ho = Revisits(5, 0.0);
   const test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
   ASSERT_GE(loops.loops.size(), 10u);
   const double raw_ate = test::AlignedAte(s.raw, s.gt);
@@ -82,11 +91,7 @@ TEST(PoseGraph, CorrectsSyntheticSim3DriftWithLoops) {
 TEST(PoseGraph, FalseLoopsAreRejectedAndDoNotPullTheMapApart) {
   const Synthetic s = MakeSynthetic(150, 2.3, 2);
   auto rng = test::SeededRng(12);
-  test::LoopHarnessOptions ho;
-  ho.distance = 3.0;
-  ho.min_gap = 100;
-  ho.query_stride = 5;
-  ho.outlier_fraction = 0.2;
+  const test::LoopHarnessOptions ho = Revisits(5, 0.2);
   const test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
   const double raw_ate = test::AlignedAte(s.raw, s.gt);
   PoseGraphOptions pcm;  // default: PCM + Cauchy
@@ -142,6 +147,52 @@ TEST(Pcm, ConsistentLoopsKeptInconsistentDropped) {
   const PoseGraphSummary summary = graph.Optimize(PoseGraphOptions{});
   ASSERT_EQ(summary.rejected_loops, std::vector<size_t>{2});
   EXPECT_EQ(summary.rejected_loop_ids[0], (LoopPair{160, 20}));
+}
+
+// The incremental PCM (what Optimize uses) gives exactly the full recomputation's clique while
+// the graph grows: vertices and loops appended between calls, false loops among them, the test's
+// options changed and changed back (the cache must be rebuilt, not reused).
+TEST(Pcm, IncrementalEqualsFullRecomputation) {
+  const Synthetic s = MakeSynthetic(150, 2.3, 5);
+  auto rng = test::SeededRng(13);
+  const test::LoopHarnessOptions ho = Revisits(2, 0.3);
+  test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
+  ASSERT_GE(loops.loops.size(), 30u);
+  // Loops in the order their query keyframe arrives, as a running system adds them.
+  std::vector<size_t> order(loops.loops.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return std::max(loops.loops[a].query_id, loops.loops[a].match_id) <
+           std::max(loops.loops[b].query_id, loops.loops[b].match_id);
+  });
+  PcmOptions strict;  // a different pairwise test: far fewer pairs pass it
+  strict.confidence = 0.5;
+  strict.step_translation_fraction = 0.005;
+  strict.step_rotation_sigma_rad = 0.0005;
+  strict.step_scale_sigma = 0.0005;
+  PoseGraph graph(VertexType::kSim3);
+  size_t next_loop = 0, calls = 0, rejected_somewhere = 0;
+  for (size_t v = 0; v < s.raw.size(); ++v) {
+    graph.AddVertex(static_cast<int64_t>(v), s.raw[v]);
+    bool added = false;
+    while (next_loop < order.size()) {
+      const LoopConstraint& l = loops.loops[order[next_loop]];
+      if (static_cast<size_t>(std::max(l.query_id, l.match_id)) > v) break;
+      graph.AddLoop(l);
+      ++next_loop;
+      added = true;
+    }
+    if (!added) continue;
+    const PcmOptions& o = (calls / 4) % 2 == 1 ? strict : PcmOptions{};
+    const std::vector<size_t> incremental = graph.PcmConsistentLoopsIncremental(o);
+    EXPECT_EQ(incremental, graph.PcmConsistentLoops(o))
+        << "after " << graph.loops().size() << " loops, call " << calls;
+    rejected_somewhere += graph.loops().size() - incremental.size();
+    ++calls;
+  }
+  EXPECT_EQ(next_loop, order.size());
+  EXPECT_GE(calls, 8u);               // several growth steps, both option sets twice
+  EXPECT_GT(rejected_somewhere, 0u);  // the false loops made PCM reject something
 }
 
 TEST(PoseGraph, GaugeVertexStaysFixedAndOptionsAreChecked) {
