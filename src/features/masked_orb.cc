@@ -7,6 +7,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "linear_exact_resize.h"
 #include "sparseloop/core/check.h"
 
 namespace sparseloop::internal {
@@ -24,7 +25,8 @@ struct Workspace {
   std::vector<cv::Point2f> level_pt;  // per returned keypoint: its level coordinates
   std::vector<cv::KeyPoint> level_kps;
   MaskedOrbParams params;
-  cv::Ptr<cv::ORB> orb;  // descriptors only (compute with provided keypoints)
+  cv::Ptr<cv::ORB> orb;        // descriptors only (compute with provided keypoints)
+  LinearExactResizer resizer;  // cv::resize(INTER_LINEAR_EXACT), bit-identical, tables cached
 };
 
 Workspace& ThreadWorkspace() {
@@ -134,10 +136,11 @@ void DetectMaskedOrb(const cv::Mat& image, const cv::Mat& mask, const MaskedOrbP
       ws.image[0] = image;
       ws.mask[0] = mask;
     } else {
-      // cv::ORB resizes each level from the previous one; the level Mats are reused per thread.
-      cv::resize(ws.image[l - 1], ws.image[l], sz, 0, 0, cv::INTER_LINEAR_EXACT);
+      // cv::ORB resizes each level from the previous one (INTER_LINEAR_EXACT); the level Mats
+      // are reused per thread.
+      ws.resizer.Resize(ws.image[l - 1], sz, &ws.image[l]);
       if (!mask.empty()) {
-        cv::resize(ws.mask[l - 1], ws.mask[l], sz, 0, 0, cv::INTER_LINEAR_EXACT);
+        ws.resizer.Resize(ws.mask[l - 1], sz, &ws.mask[l]);
         cv::threshold(ws.mask[l], ws.mask[l], 254, 0, cv::THRESH_TOZERO);
       } else {
         ws.mask[l].release();

@@ -2,7 +2,8 @@
 // Private to sparseloop::features. Masked ORB detection that reproduces
 // cv::ORB::detectAndCompute(image, mask) (OpenCV 4.x, HARRIS_SCORE, edge threshold 31, patch 31,
 // first level 0, WTA_K 2) without OpenCV's masked-path cost (docs/DETECTOR.md, Speed):
-//   per level: image pyramid by chained INTER_LINEAR_EXACT resizes, mask pyramid the same way
+//   per level: image pyramid by chained INTER_LINEAR_EXACT resizes (LinearExactResizer, bit-exact),
+//   mask pyramid the same way
 //   (thresholded at 254 like OpenCV), FAST with non-max suppression, drop keypoints outside the
 //   level mask and within 31 px of the level border, keep the 2n best by FAST score, Harris
 //   response on a 7x7 block, keep the n best (n = ORB's per-level quota).
