@@ -249,29 +249,4 @@ void LinearExactResizer::Resize(const cv::Mat& src, cv::Size size, cv::Mat* dst)
   }
 }
 
-void ResizeLinearExactReference(const cv::Mat& src, cv::Size size, cv::Mat* dst) {
-  SL_CHECK(src.type() == CV_8UC1 && !src.empty() && size.width > 0 && size.height > 0);
-  const Axis x = MakeAxis(src.cols, size.width);
-  const Axis y = MakeAxis(src.rows, size.height);
-  cv::Mat out(size, CV_8UC1);
-  std::vector<uint16_t> h0(size.width), h1(size.width);
-  const auto horizontal = [&](int r, std::vector<uint16_t>* h) {
-    const uint8_t* s = src.ptr<uint8_t>(r);
-    HorizontalBorders(s, x, size.width, h->data());
-    HorizontalTaps(s, x, x.min, h->data());
-  };
-  for (int dy = 0; dy < size.height; ++dy) {
-    uint8_t* o = out.ptr<uint8_t>(dy);
-    if (dy < y.min || dy >= y.max) {
-      horizontal(dy < y.min ? 0 : src.rows - 1, &h0);
-      RowFromOne(h0.data(), o, size.width);
-      continue;
-    }
-    horizontal(y.ofst[dy], &h0);
-    horizontal(y.ofst[dy] + 1, &h1);
-    VerticalScalar(h0.data(), h1.data(), y.c0[dy], y.c1[dy], o, 0, size.width);
-  }
-  *dst = out;
-}
-
 }  // namespace sparseloop::internal

@@ -40,7 +40,4 @@ class LinearExactResizer {
   bool simd_ = true;
 };
 
-// The same result by the plain scalar formulas (no cache, no SIMD): the reference of the tests.
-void ResizeLinearExactReference(const cv::Mat& src, cv::Size size, cv::Mat* dst);
-
 }  // namespace sparseloop::internal
