@@ -166,14 +166,16 @@ int RunDetect(int argc, char** argv) {
 
   const std::filesystem::path out(out_dir);
   WriteFileAtomically(out / "loops.csv", [&](std::ostream& os) {
-    os << "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale,match_session\n";
+    os << "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
+          "scale,match_session\n";
     for (const auto& l : loops) {
       const auto& p = l.match_from_query;
       os << fmt::format(
-          "{},{},{:.6f},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}\n",
-          l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), p.rotation.x(),
-          p.rotation.y(), p.rotation.z(), p.rotation.w(), p.translation.x(), p.translation.y(),
-          p.translation.z(), p.scale, l.match_session);
+          "{},{},{:.6f},{},{},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}\n",
+          l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), ToString(l.pose_kind),
+          l.planar_alternative ? 1 : 0, p.rotation.x(), p.rotation.y(), p.rotation.z(),
+          p.rotation.w(), p.translation.x(), p.translation.y(), p.translation.z(), p.scale,
+          l.match_session);
     }
   });
   nlohmann::json summary = {
@@ -184,6 +186,9 @@ int RunDetect(int argc, char** argv) {
       {"features_per_keyframe", options.features.max_features},
       {"search", ToString(options.search.strategy)},
       {"pose_kind", loops.empty() ? "none" : ToString(loops.front().pose_kind)},
+      {"planar_alternatives",
+       std::count_if(loops.begin(), loops.end(),
+                     [](const LoopResult& l) { return l.planar_alternative; })},
       {"timing_ms",
        {{"extract", Stats(t_extract)},
         {"search", Stats(t_search)},

@@ -125,15 +125,16 @@ void ProgressLine::Finish() {
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
                    const std::vector<bool>* accepted, const LoopTruth* truth) {
   WriteFileAtomically(path, [&](std::ostream& os) {
-    os << "query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,"
-          "scale,match_session\n";
+    os << "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
+          "qz,qw,tx,ty,tz,scale,match_session\n";
     os << std::setprecision(10);
     for (size_t i = 0; i < loops.size(); ++i) {
       const LoopResult& l = loops[i];
       const auto& q = l.match_from_query.rotation;
       const auto& t = l.match_from_query.translation;
       os << l.query_id << ',' << l.match_id << ',' << l.score << ',' << l.inliers << ','
-         << ToString(l.status) << ',' << ToString(l.pose_kind) << ',';
+         << ToString(l.status) << ',' << ToString(l.pose_kind) << ','
+         << (l.planar_alternative ? 1 : 0) << ',';
       if (accepted && i < accepted->size()) os << ((*accepted)[i] ? 1 : 0);
       os << ',';
       if (truth && i < truth->correct.size() && truth->correct[i])

@@ -50,8 +50,9 @@ class ProgressLine {
 };
 
 // loops.csv:
-// query,match,score,inliers,status,pose_kind,accepted,correct,qx,qy,qz,qw,tx,ty,tz,scale,
-// match_session (accepted / correct are empty when unknown, including rows past the end of
+// query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,qz,qw,tx,
+// ty,tz,scale,match_session (planar_alternative 0/1: LoopResult::planar_alternative; accepted /
+// correct are empty when unknown, including rows past the end of
 // `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session).
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
                    const std::vector<bool>* accepted, const LoopTruth* truth);

@@ -102,6 +102,9 @@ TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
       << "the ring closure 0029 -> 0001/0002 was not detected:\n"
       << loops_csv;
   EXPECT_GE(summary["accepted_loops"].get<int>(), 1);
+  EXPECT_EQ(loops_csv.substr(0, loops_csv.find('\n')),
+            "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
+            "qz,qw,tx,ty,tz,scale,match_session");
   // Reached: 1.107 -> 0.941 m (85 %). One 2D-only loop (unit translation, no scale) over a
   // 29-view ring cannot undo the scale drift inside the ring.
   EXPECT_LT(corrected_ate, 0.9 * raw_ate);

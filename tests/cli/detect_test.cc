@@ -2,6 +2,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -32,14 +33,27 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   std::istringstream lines(csv);
   std::string header;
   std::getline(lines, header);
-  EXPECT_EQ(header, "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale,match_session");
-  int loops = 0;
+  EXPECT_EQ(header,
+            "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
+            "scale,match_session");
+  int loops = 0, planar = 0;
   bool ring = false;
   for (std::string line; std::getline(lines, line);) {
     int q = -1, m = -1;
     ASSERT_EQ(std::sscanf(line.c_str(), "%d,%d", &q, &m), 2) << line;
     EXPECT_GT(q, m);
-    EXPECT_NE(line.find(",detected,"), std::string::npos);
+    std::vector<std::string> fields;
+    std::istringstream row(line);
+    for (std::string f; std::getline(row, f, ',');) fields.push_back(f);
+    ASSERT_EQ(fields.size(), 16u) << line;
+    EXPECT_EQ(fields[4], "detected");
+    // No depths: the essential matrix's unit direction, or the local map's PnP / Sim(3).
+    EXPECT_TRUE(fields[5] == "se3_unit_translation" || fields[5] == "se3_metric" ||
+                fields[5] == "sim3")
+        << line;
+    // No poses, so no pose prior to pick a planar alternative with.
+    EXPECT_EQ(fields[6], "0") << line;
+    planar += fields[6] == "1";
     // Frame indices of images:DIR are 0-based: view 0029 is index 29, views 0000-0002 are 0-2.
     ring = ring || (q >= 28 && m <= 2);
     ++loops;
@@ -48,6 +62,7 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   const auto summary = nlohmann::json::parse(ReadAll(out / "summary.json"));
   EXPECT_EQ(summary["keyframes"].get<int>(), 30);
   EXPECT_EQ(summary["loops"].get<int>(), loops);
+  EXPECT_EQ(summary["planar_alternatives"].get<int>(), planar);
   EXPECT_EQ(summary["search"].get<std::string>(), "global");
   EXPECT_GT(summary["bytes_per_keyframe"].get<double>(), 0.0);
   for (const char* stage : {"extract", "search", "match", "verify", "total"}) {

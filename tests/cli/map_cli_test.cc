@@ -43,7 +43,9 @@ std::vector<CsvLoop> ReadLoops(const std::filesystem::path& path) {
   std::istringstream lines(Slurp(path));
   std::string header;
   std::getline(lines, header);
-  EXPECT_EQ(header, "query,match,score,inliers,status,qx,qy,qz,qw,tx,ty,tz,scale,match_session");
+  EXPECT_EQ(header,
+            "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
+            "scale,match_session");
   std::vector<CsvLoop> out;
   for (std::string line; std::getline(lines, line);) {
     CsvLoop l;
