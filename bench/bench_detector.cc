@@ -3,6 +3,7 @@
 //   build/bin/bench_detector --benchmark_counters_tabular=true
 // (extraction only: --benchmark_filter=BM_ExtractKitti)
 #include <algorithm>
+#include <cmath>
 #include <ctime>
 #include <filesystem>
 #include <random>
@@ -11,7 +12,9 @@
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "features/linear_exact_resize.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/matching/descriptor_matching.h"
@@ -171,6 +174,48 @@ BENCHMARK(BM_ExtractKitti)
     ->Args({300, 0, 0})
     ->Args({300, 0, 1})
     ->Args({50, 1, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(320);
+
+// The 14 resizes of one extraction's ORB pyramids (image and high-gradient mask, 8 levels, each
+// from the previous one, INTER_LINEAR_EXACT) on the KITTI frames. impl: 0 = cv::resize, 1 =
+// LinearExactResizer (what kFast uses; bit-identical, LinearExactResize.* tests), 2 = the same
+// with its scalar loops only (what other CPUs run). One thread; wall time per frame.
+void BM_PyramidResizeKitti(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const auto& images = KittiImages();
+  if (images.empty()) {
+    state.SkipWithError("kitti07_first160 not found");
+    return;
+  }
+  const int impl = static_cast<int>(state.range(0));
+  std::vector<cv::Mat> masks;
+  for (const cv::Mat& img : images) masks.push_back(HighGradientMask(img, GradientMaskOptions()));
+  internal::LinearExactResizer resizer(impl == 1);
+  std::vector<cv::Mat> level(8);
+  size_t i = 0;
+  for (auto _ : state) {
+    const size_t f = i++ % images.size();
+    for (const cv::Mat* base : {&images[f], static_cast<const cv::Mat*>(&masks[f])}) {
+      level[0] = *base;
+      for (int l = 1; l < 8; ++l) {
+        const double s = std::pow(1.2000000476837158, l);  // cv::ORB's 1.2f, as double
+        const cv::Size sz(cvRound(base->cols / s), cvRound(base->rows / s));
+        if (impl == 0) {
+          cv::resize(level[l - 1], level[l], sz, 0, 0, cv::INTER_LINEAR_EXACT);
+        } else {
+          resizer.Resize(level[l - 1], sz, &level[l]);
+        }
+      }
+      benchmark::DoNotOptimize(level[7].data);
+    }
+  }
+}
+BENCHMARK(BM_PyramidResizeKitti)
+    ->ArgNames({"impl"})
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(320);
 
