@@ -97,7 +97,16 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
       t[i] = static_cast<uint8_t>(std::min(static_cast<int>(std::sqrt(float(i))), 255));
     return t;
   }();
-  cv::Mat mag(rows, cols, CV_8UC1, cv::Scalar(0));
+  // The magnitude buffer is reused per thread (a fresh zeroed 1226x370 buffer per keyframe cost
+  // a memset and, on this VM, page faults); every pixel is written below, the border as 0.
+  thread_local cv::Mat mag;
+  mag.create(rows, cols, CV_8UC1);
+  mag.row(0).setTo(0);
+  mag.row(rows - 1).setTo(0);
+  for (int y = 1; y + 1 < rows; ++y) {
+    mag.at<uint8_t>(y, 0) = 0;
+    mag.at<uint8_t>(y, cols - 1) = 0;
+  }
   for (int y = 1; y + 1 < rows; ++y) {
     const uint8_t* up = gray.ptr<uint8_t>(y - 1);
     const uint8_t* mid = gray.ptr<uint8_t>(y);
@@ -136,7 +145,7 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
     }
   }
   // Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
-  cv::Mat mask(rows, cols, CV_8UC1, cv::Scalar(0));
+  cv::Mat mask(rows, cols, CV_8UC1);  // every pixel is written: the blocks tile the image
   const int b = options.block_size;
   for (int by = 0; by < rows; by += b) {
     for (int bx = 0; bx < cols; bx += b) {
@@ -160,7 +169,13 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
       for (int y = by; y < y1; ++y) {
         const uint8_t* row = mag.ptr<uint8_t>(y);
         uint8_t* out = mask.ptr<uint8_t>(y);
-        for (int x = bx; x < x1; ++x) out[x] = row[x] >= above ? 255 : 0;
+        if (above > 255) {
+          std::fill(out + bx, out + x1, uint8_t{0});
+          continue;
+        }
+        // An 8-bit comparison (the loop vectorises): mag >= above <=> mag > above - 1.
+        const auto a8 = static_cast<uint8_t>(above);
+        for (int x = bx; x < x1; ++x) out[x] = row[x] >= a8 ? 255 : 0;
       }
     }
   }
