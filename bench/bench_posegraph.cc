@@ -1,6 +1,11 @@
 // Pose-graph solve time for a SLAM-sized Sim(3) graph: 5,000 keyframes along a drifting
 // trajectory with 100 loops. "Cold" solves from the raw poses; "Warm" re-solves after one new loop
 // starting from the previous solution (what the background optimizer does in a live system).
+// The default options reduce the odometry chains (PoseGraphOptions::reduce_chains); the
+// "FullGraph" cases solve every vertex, the baseline measured in the same run, and the default
+// cases report their largest position difference to it. Both report how far they stopped from the
+// full graph's minimum (max_diff_to_optimum_m, cost_vs_optimum; a tight full solve, untimed).
+#include <algorithm>
 #include <memory>
 #include <random>
 
@@ -53,45 +58,96 @@ Graph MakeGraph(int num_keyframes, int num_loops) {
   return g;
 }
 
-void BM_PoseGraphSim3Cold(benchmark::State& state) {
-  const Graph g = MakeGraph(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+// The options of a case: the default (chain reduction) or the full graph in the solve.
+PoseGraphOptions SolveOptions(bool reduce_chains) {
   PoseGraphOptions options;
-  int iterations = 0;
-  double solve_ms = 0.0, pcm_ms = 0.0;
+  options.reduce_chains = reduce_chains;
+  return options;
+}
+
+// The reference minimum: every vertex in the solve, run to a tight tolerance.
+PoseGraphOptions TightFullOptions() {
+  PoseGraphOptions options = SolveOptions(false);
+  options.function_tolerance = 1e-12;
+  options.parameter_tolerance = 1e-12;
+  return options;
+}
+
+// Largest vertex position difference between two solved graphs (same ids).
+double MaxPositionDifference(const PoseGraph& a, const PoseGraph& b) {
+  double out = 0.0;
+  for (int64_t id : a.VertexIds()) {
+    out = std::max(out, (a.Pose(id).translation - b.Pose(id).translation).norm());
+  }
+  return out;
+}
+
+void Sim3Cold(benchmark::State& state, bool reduce_chains) {
+  const Graph g = MakeGraph(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  const PoseGraphOptions options = SolveOptions(reduce_chains);
+  PoseGraph graph = BuildOdometryGraph(g.ids, g.raw, VertexType::kSim3);
+  for (const auto& l : g.loops) graph.AddLoop(l);
+  const PoseGraph initial = graph;
+  PoseGraphSummary summary;
   for (auto _ : state) {
     state.PauseTiming();
-    PoseGraph graph = BuildOdometryGraph(g.ids, g.raw, VertexType::kSim3);
-    for (const auto& l : g.loops) graph.AddLoop(l);
+    graph = initial;
     state.ResumeTiming();
-    const PoseGraphSummary summary = graph.Optimize(options);
-    iterations = summary.iterations;
-    solve_ms = 1e3 * summary.solve_seconds;
-    pcm_ms = 1e3 * summary.rejection_seconds;
+    summary = graph.Optimize(options);
   }
-  state.counters["lm_iterations"] = iterations;
-  state.counters["ceres_ms"] = solve_ms;
-  state.counters["pcm_ms"] = pcm_ms;
+  state.counters["lm_iterations"] = summary.iterations;
+  state.counters["solve_ms"] = 1e3 * summary.solve_seconds;
+  state.counters["pcm_ms"] = 1e3 * summary.rejection_seconds;
+  state.counters["solved_vertices"] = static_cast<double>(summary.num_solved_vertices);
+  state.counters["final_cost"] = summary.final_cost;
+  // Accuracy next to the speed: distance to the full graph's minimum, outside the timed loop.
+  PoseGraph optimum = initial;
+  const PoseGraphSummary optimum_summary = optimum.Optimize(TightFullOptions());
+  state.counters["max_diff_to_optimum_m"] = MaxPositionDifference(graph, optimum);
+  state.counters["cost_vs_optimum"] = summary.final_cost / optimum_summary.final_cost;
 }
-BENCHMARK(BM_PoseGraphSim3Cold)->Args({5000, 100})->Unit(benchmark::kMillisecond)->Iterations(3);
+void BM_PoseGraphSim3Cold(benchmark::State& state) { Sim3Cold(state, true); }
+void BM_PoseGraphSim3ColdFullGraph(benchmark::State& state) { Sim3Cold(state, false); }
+BENCHMARK(BM_PoseGraphSim3Cold)->Args({5000, 100})->Unit(benchmark::kMillisecond)->Iterations(5);
+BENCHMARK(BM_PoseGraphSim3ColdFullGraph)
+    ->Args({5000, 100})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
-void BM_PoseGraphSim3WarmNewLoop(benchmark::State& state) {
+void Sim3WarmNewLoop(benchmark::State& state, bool reduce_chains) {
   const Graph g = MakeGraph(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
-  PoseGraphOptions options;
+  const PoseGraphOptions options = SolveOptions(reduce_chains);
   PoseGraph base = BuildOdometryGraph(g.ids, g.raw, VertexType::kSim3);
   for (size_t k = 0; k + 1 < g.loops.size(); ++k) base.AddLoop(g.loops[k]);
   base.Optimize(options);  // previous solution
-  int iterations = 0;
+  base.AddLoop(g.loops.back());
+  PoseGraph graph = base;
+  PoseGraphSummary summary;
   for (auto _ : state) {
     state.PauseTiming();
-    PoseGraph graph = base;
-    graph.AddLoop(g.loops.back());
+    graph = base;
     state.ResumeTiming();
-    iterations = graph.Optimize(options).iterations;
+    summary = graph.Optimize(options);
   }
-  state.counters["lm_iterations"] = iterations;
+  state.counters["lm_iterations"] = summary.iterations;
+  state.counters["solved_vertices"] = static_cast<double>(summary.num_solved_vertices);
+  PoseGraph optimum = base;
+  const PoseGraphSummary optimum_summary = optimum.Optimize(TightFullOptions());
+  state.counters["max_diff_to_optimum_m"] = MaxPositionDifference(graph, optimum);
+  state.counters["cost_vs_optimum"] = summary.final_cost / optimum_summary.final_cost;
+}
+void BM_PoseGraphSim3WarmNewLoop(benchmark::State& state) { Sim3WarmNewLoop(state, true); }
+void BM_PoseGraphSim3WarmNewLoopFullGraph(benchmark::State& state) {
+  Sim3WarmNewLoop(state, false);
 }
 BENCHMARK(BM_PoseGraphSim3WarmNewLoop)
     ->Args({5000, 100})
+    ->Args({30000, 2000})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(5);
+BENCHMARK(BM_PoseGraphSim3WarmNewLoopFullGraph)
+    ->Args({5000, 100})
+    ->Args({30000, 2000})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);
 

@@ -4,7 +4,9 @@
 //
 //   bench_soak [--keyframes 100000] [--k 300] [--out soak.csv] [--period 400] [--check-every 10]
 //              [--window 1000] [--no-optimizer] [--rejection pcm|none] [--keep-heap]
+//              [--full-graph]
 //   --keep-heap: BackgroundOptimizerOptions::release_memory_after_solve = false (the comparison).
+//   --full-graph: PoseGraphOptions::reduce_chains = false (every vertex in each solve).
 //
 // Images: 320x240 crops of one 2400x2400 procedural texture (value noise + rectangles + discs,
 // corner-rich for ORB), seen by a nadir camera (fx = 300 px) at 10 m over the plane, so a crop
@@ -92,6 +94,7 @@ int main(int argc, char** argv) {
   int window = 1000;
   bool use_optimizer = true;
   bool keep_heap = false;
+  bool full_graph = false;
   std::string rejection = "pcm";
   std::string out_path = "soak.csv";
   for (int i = 1; i < argc; ++i) {
@@ -121,10 +124,12 @@ int main(int argc, char** argv) {
       rejection = next();
     else if (a == "--keep-heap")
       keep_heap = true;
+    else if (a == "--full-graph")
+      full_graph = true;
     else {
       std::cerr << "usage: bench_soak [--keyframes N] [--k K] [--out CSV] [--period P] "
                    "[--check-every N] [--window W] [--no-optimizer] [--rejection pcm|none] "
-                   "[--keep-heap]\n";
+                   "[--keep-heap] [--full-graph]\n";
       return a == "--help" ? 0 : 2;
     }
   }
@@ -156,6 +161,7 @@ int main(int argc, char** argv) {
   bopt.solve.rejection =
       rejection == "pcm" ? sparseloop::OutlierRejection::kPcm : sparseloop::OutlierRejection::kNone;
   bopt.solve.max_iterations = 20;
+  bopt.solve.reduce_chains = !full_graph;
   bopt.release_memory_after_solve = !keep_heap;
   std::unique_ptr<sparseloop::BackgroundOptimizer> optimizer;
   if (use_optimizer)
@@ -250,14 +256,15 @@ int main(int argc, char** argv) {
   const long final_rss = StatusKiB("VmRSS"), peak = StatusKiB("VmHWM");
   std::printf(
       "{\"keyframes\": %ld, \"k\": %d, \"check_every\": %d, \"period\": %d, \"optimizer\": %s, "
-      "\"rejection\": \"%s\", \"release_memory_after_solve\": %s, \"loops\": %ld, "
+      "\"rejection\": \"%s\", \"release_memory_after_solve\": %s, \"reduce_chains\": %s, "
+      "\"loops\": %ld, "
       "\"solves\": %lu, "
       "\"rss_bytes_per_keyframe_second_half\": %.1f, \"record_bytes_per_keyframe\": %.1f, "
       "\"rss_start_kib\": %ld, \"rss_end_kib\": %ld, \"peak_rss_kib\": %ld, "
       "\"loop_seconds\": %.1f, \"total_seconds\": %.1f, \"ms_per_keyframe\": %.3f, "
       "\"csv\": \"%s\"}\n",
       keyframes, k, check_every, period, optimizer ? "true" : "false", rejection.c_str(),
-      keep_heap ? "false" : "true", loops,
+      keep_heap ? "false" : "true", full_graph ? "false" : "true", loops,
       static_cast<unsigned long>(optimizer ? optimizer->num_solves() : 0), slope,
       static_cast<double>(record_bytes) / static_cast<double>(keyframes), rss_start_kib, final_rss,
       peak, loop_seconds, total_seconds, 1000.0 * loop_seconds / keyframes, out_path.c_str());

@@ -109,6 +109,7 @@ int RunRun(int argc, char** argv) {
                           {"solve_seconds", result.optimizer.solve_seconds},
                           {"rejection_seconds", result.optimizer.rejection_seconds},
                           {"vertices", result.optimizer.num_vertices},
+                          {"solved_vertices", result.optimizer.num_solved_vertices},
                           {"edges", result.optimizer.num_edges}};
   nlohmann::json rejected = nlohmann::json::array();
   for (const auto& r : result.optimizer.rejected_loop_ids) rejected.push_back({r.query, r.match});

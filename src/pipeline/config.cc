@@ -240,6 +240,8 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
                "one of none|pcm|switchable|pcm+switchable");
     p->Get("pcm_confidence", &o.pcm.confidence);
     p->Get("num_threads", &o.num_threads);
+    p->Get("reduce_chains", &o.reduce_chains);
+    p->Get("max_chain_length", &o.max_chain_length);
     p->Finish();
   }
   root.GetEnum("vertex_type", &options->vertex_type, ParseVertex, "one of sim3|se3|4dof");
@@ -354,7 +356,9 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"loss_scale", options.optimizer.loss_scale},
             {"rejection", RejectionName(options.optimizer.rejection)},
             {"pcm_confidence", options.optimizer.pcm.confidence},
-            {"num_threads", options.optimizer.num_threads}}},
+            {"num_threads", options.optimizer.num_threads},
+            {"reduce_chains", options.optimizer.reduce_chains},
+            {"max_chain_length", options.optimizer.max_chain_length}}},
           {"vertex_type", VertexName(options.vertex_type)},
           {"loop_translation_sigma_steps", options.loop_translation_sigma_steps},
           {"loop_rotation_sigma_rad", options.loop_rotation_sigma_rad},

@@ -1,6 +1,7 @@
 #include "sparseloop/posegraph/pose_graph.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <numeric>
@@ -8,6 +9,7 @@
 #include <ceres/ceres.h>
 #include <fmt/format.h>
 
+#include "chain_reduction.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"
@@ -160,6 +162,7 @@ void PoseGraphOptions::Check() const {
   SL_CHECK_MSG(switch_reject_below >= 0 && switch_reject_below <= 1,
                "switch_reject_below must be in [0,1]");
   SL_CHECK_MSG(num_threads >= 1, "num_threads must be >= 1, got {}", num_threads);
+  SL_CHECK_MSG(max_chain_length >= 1, "max_chain_length must be >= 1, got {}", max_chain_length);
   pcm.Check();
 }
 
@@ -189,10 +192,11 @@ const char* ToString(PoseGraphStatus status) {
 
 std::string PoseGraphSummary::BriefReport() const {
   return fmt::format(
-      "Pose graph: {} vertices, {} edges, {} loops ({} rejected); initial cost {:.6e}, final cost "
-      "{:.6e}, {} iterations, {:.3f} s solve + {:.3f} s rejection, termination: {} ({})",
-      num_vertices, num_edges, num_loops, rejected_loops.size(), initial_cost, final_cost,
-      iterations, solve_seconds, rejection_seconds, ToString(status), ceres_message);
+      "Pose graph: {} vertices ({} in the solve), {} edges, {} loops ({} rejected); initial cost "
+      "{:.6e}, final cost {:.6e}, {} iterations, {:.3f} s solve + {:.3f} s rejection, "
+      "termination: {} ({})",
+      num_vertices, num_solved_vertices, num_edges, num_loops, rejected_loops.size(), initial_cost,
+      final_cost, iterations, solve_seconds, rejection_seconds, ToString(status), ceres_message);
 }
 
 void PoseGraph::AddVertex(int64_t id, const Sim3d& world_from_vertex) {
@@ -230,6 +234,7 @@ void PoseGraph::AddEdge(const PoseGraphEdge& edge) {
   SL_CHECK_MSG(edge.from != edge.to, "edge from a vertex to itself ({})", edge.from);
   SqrtInformation(edge.information);  // validates
   edges_.push_back(edge);
+  edge_ends_.push_back({Index(edge.from), Index(edge.to)});
 }
 
 size_t PoseGraph::AddLoop(const LoopConstraint& loop) {
@@ -334,6 +339,53 @@ class LogCallback : public ceres::IterationCallback {
 
 }  // namespace
 
+double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                           const std::vector<double>& switches) const {
+  const std::unique_ptr<ceres::LossFunction> edge_loss(
+      MakeLoss(options.edge_loss, options.loss_scale));
+  const std::unique_ptr<ceres::LossFunction> loop_loss(
+      MakeLoss(options.loop_loss, options.loss_scale));
+  const auto term = [](const ceres::LossFunction* loss, double squared) {
+    if (loss == nullptr) return 0.5 * squared;
+    double rho[3];
+    loss->Evaluate(squared, rho);
+    return 0.5 * rho[0];
+  };
+  // e^T Info e with e = log(Z^-1 inv(T_a) T_b): the squared norm of the whitened residual
+  // (Sim3EdgeCost's), without forming the square root of the information.
+  const auto squared_error = [this](const Sim3d& a_from_b, const Matrix7d& information, size_t a,
+                                    size_t b) {
+    const Vector8d z_vector = a_from_b.ToVector();
+    const jet::Sim3<double> z = jet::Sim3<double>::FromArray(z_vector.data());
+    const jet::Sim3<double> ta = jet::Sim3<double>::FromArray(params_[a].data());
+    const jet::Sim3<double> tb = jet::Sim3<double>::FromArray(params_[b].data());
+    const jet::Vector7<double> e = (z.Inverse() * (ta.Inverse() * tb)).Log();
+    return e.dot(information * e);
+  };
+  double cost = 0.0;
+  for (size_t k = 0; k < edges_.size(); ++k) {
+    const PoseGraphEdge& e = edges_[k];
+    cost += term(edge_loss.get(),
+                 squared_error(e.from_from_to, e.information, edge_ends_[k][0], edge_ends_[k][1]));
+  }
+  const bool switchable = options.rejection == OutlierRejection::kSwitchable ||
+                          options.rejection == OutlierRejection::kPcmAndSwitchable;
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    if (!use_loop[k]) continue;
+    const LoopConstraint& loop = loops_[k];
+    const double s = switchable ? switches[k] : 1.0;
+    cost += term(loop_loss.get(),
+                 s * s *
+                     squared_error(loop.match_from_query, LoopEffectiveInformation(loop),
+                                   Index(loop.match_id), Index(loop.query_id)));
+    if (switchable) {
+      const double prior = (1.0 - s) / options.switch_prior_sigma;
+      cost += 0.5 * prior * prior;
+    }
+  }
+  return cost;
+}
+
 PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
                                      const std::atomic<bool>* interrupt) {
   options.Check();
@@ -359,24 +411,55 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
   const bool switchable = options.rejection == OutlierRejection::kSwitchable ||
                           options.rejection == OutlierRejection::kPcmAndSwitchable;
 
-  // 2. The Ceres problem over the stored parameter blocks.
+  // 2. The Ceres problem over the stored parameter blocks (only the kept ones when chains are
+  //    reduced; see chain_reduction.h).
+  Timer reduction_timer;
+  const bool reduce = options.reduce_chains && type_ == VertexType::kSim3;
+  internal::ChainReduction reduction;
+  if (reduce) {
+    std::vector<bool> must_keep(ids_.size(), false);
+    must_keep[Index(fixed_vertex())] = true;
+    for (size_t k = 0; k < loops_.size(); ++k) {
+      if (!use_loop[k]) continue;
+      must_keep[Index(loops_[k].query_id)] = true;
+      must_keep[Index(loops_[k].match_id)] = true;
+    }
+    reduction =
+        internal::ReduceChains(edges_, edge_ends_, std::move(must_keep), options.max_chain_length);
+  }
+  double reduction_seconds = reduction_timer.ElapsedMs() / 1000.0;
+
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   const std::unique_ptr<ceres::Manifold> manifold = CreateVertexManifold(type_);
   for (size_t i = 0; i < ids_.size(); ++i) {
+    if (reduce && !reduction.kept[i]) continue;
     problem.AddParameterBlock(params_[i].data(), 8, manifold.get());
   }
+  summary.num_solved_vertices = reduce ? reduction.num_kept : ids_.size();
   // Sim(3) vertices: analytic Jacobians (Sim3EdgeCost, ~3x cheaper); the other vertex types
   // keep the autodiff residual (the analytic one is written for the Sim(3) manifold only).
   const auto make_edge = [this](const Sim3d& a_from_b, const Matrix7d& sqrt_information) {
     return type_ == VertexType::kSim3 ? Sim3EdgeCost::Create(a_from_b, sqrt_information)
                                       : EdgeError::Create(a_from_b, sqrt_information);
   };
-  for (const PoseGraphEdge& e : edges_) {
+  const auto add_edge = [&](const PoseGraphEdge& e) {
     problem.AddResidualBlock(make_edge(e.from_from_to, SqrtInformation(e.information)),
                              MakeLoss(options.edge_loss, options.loss_scale),
                              params_[Index(e.from)].data(), params_[Index(e.to)].data());
+  };
+  if (reduce) {
+    for (const size_t e : reduction.direct_edges) add_edge(edges_[e]);
+    for (const internal::ReducedChain& chain : reduction.chains) {
+      Vector8d z;
+      chain.from_from_to.ToArray(z.data());
+      problem.AddResidualBlock(Sim3EdgeCost::Create(Sim3d::FromVector(z), chain.sqrt_information),
+                               MakeLoss(options.edge_loss, options.loss_scale),
+                               params_[chain.from].data(), params_[chain.to].data());
+    }
+  } else {
+    for (const PoseGraphEdge& e : edges_) add_edge(e);
   }
   std::vector<double> switches(loops_.size(), 1.0);
   for (size_t k = 0; k < loops_.size(); ++k) {
@@ -417,13 +500,17 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
   if (options.log_progress) solver_options.callbacks.push_back(&log_callback);
 
   const std::vector<Vector8d> backup = params_;
+  if (reduce) {
+    reduction_timer = Timer();
+    summary.initial_cost = FullCost(options, use_loop, switches);
+    reduction_seconds += reduction_timer.ElapsedMs() / 1000.0;
+  }
   ceres::Solver::Summary ceres_summary;
   ceres::Solve(solver_options, &problem, &ceres_summary);
 
-  summary.initial_cost = ceres_summary.initial_cost;
+  summary.initial_cost = reduce ? summary.initial_cost : ceres_summary.initial_cost;
   summary.final_cost = ceres_summary.final_cost;
   summary.iterations = static_cast<int>(ceres_summary.iterations.size()) - 1;
-  summary.solve_seconds = ceres_summary.total_time_in_seconds;
   summary.ceres_message = ceres_summary.message;
   if (interrupt_callback.interrupted()) {
     summary.status = PoseGraphStatus::kInterrupted;
@@ -438,6 +525,19 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
     params_ = backup;
     Logger().warn("pose graph solve failed: {}", ceres_summary.message);
   }
+  if (reduce) {
+    reduction_timer = Timer();
+    if (summary.status != PoseGraphStatus::kFailed) {
+      for (const internal::ReducedChain& chain : reduction.chains) {
+        internal::RecoverInterior(chain, edges_,
+                                  jet::Sim3<double>::FromArray(params_[chain.from].data()),
+                                  jet::Sim3<double>::FromArray(params_[chain.to].data()), &params_);
+      }
+    }
+    summary.final_cost = FullCost(options, use_loop, switches);
+    reduction_seconds += reduction_timer.ElapsedMs() / 1000.0;
+  }
+  summary.solve_seconds = ceres_summary.total_time_in_seconds + reduction_seconds;
   for (size_t i = 0; i < params_.size(); ++i) {
     Vector8d& p = params_[i];
     p.head<4>().normalize();

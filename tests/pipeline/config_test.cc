@@ -28,7 +28,8 @@ TEST(Config, AppliesKnownKeys) {
                    "search": {"strategy": "radius", "radius": 7.5, "plane_normal": [0, 1, 0]},
                    "check_every": 5, "seed": 7, "planar_alternatives": false,
                    "planar_alternative_tolerance": 0.3},
-      "optimizer": {"rejection": "switchable", "loop_loss": "huber"},
+      "optimizer": {"rejection": "switchable", "loop_loss": "huber", "reduce_chains": false,
+                    "max_chain_length": 3},
       "vertex_type": "se3"})"),
               "cfg.json", &o);
   EXPECT_EQ(o.detector.features.max_features, 15);
@@ -43,6 +44,8 @@ TEST(Config, AppliesKnownKeys) {
   EXPECT_EQ(o.detector.verify.seed, 7u);
   EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kSwitchable);
   EXPECT_EQ(o.optimizer.loop_loss, RobustLoss::kHuber);
+  EXPECT_FALSE(o.optimizer.reduce_chains);
+  EXPECT_EQ(o.optimizer.max_chain_length, 3);
   EXPECT_EQ(o.vertex_type, VertexType::kSe3);
 }
 
@@ -51,6 +54,8 @@ TEST(Config, RoundTripsThroughJson) {
   a.detector.features.max_features = 23;
   a.detector.search.drift_tolerance = 0.03;
   a.optimizer.rejection = OutlierRejection::kNone;
+  a.optimizer.reduce_chains = false;
+  a.optimizer.max_chain_length = 5;
   a.detector.planar_alternatives = false;
   a.detector.planar_alternative_tolerance = 0.25;
   PipelineOptions b;

@@ -6,6 +6,7 @@
 // gravity-aligned VIO, SE(2) for planar benchmark graphs). Edges measure a_from_b.
 // Loops are kept apart from the other edges so that outlier rejection (PCM, switchable
 // constraints) can drop them; the summary reports which loops were rejected.
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <optional>
@@ -109,7 +110,16 @@ struct PoseGraphOptions {
   double switch_prior_sigma = 1.0;   // unitless: std-dev of the switch prior (1 - s)
   double switch_reject_below = 0.5;  // switch value below which a loop is reported rejected
   int num_threads = 1;               // Ceres threads
-  bool log_progress = false;         // per-iteration log through Logger() (never stdout)
+  // Sim(3) graphs: solve without the vertices that only continue an odometry chain (two edges,
+  // no loop, not the gauge), each chain between two kept vertices replaced by its composed edge
+  // with the propagated covariance; the chain vertices are then recovered from the solved ends
+  // (src/posegraph/chain_reduction.h). Exact marginalisation for a linear-Gaussian chain; on
+  // Sim(3) the difference to the full solve is second order in the correction per chain. Every
+  // `max_chain_length`-th chain vertex is kept (shorter chains: smaller linearisation error,
+  // larger solve). Other vertex types always solve the full graph.
+  bool reduce_chains = true;
+  int max_chain_length = 8;   // edges per composed chain
+  bool log_progress = false;  // per-iteration log through Logger() (never stdout)
   void Check() const;
 };
 
@@ -124,15 +134,18 @@ const char* ToString(PoseGraphStatus status);
 
 struct PoseGraphSummary {
   PoseGraphStatus status = PoseGraphStatus::kNothingToDo;
-  double initial_cost = 0.0;  // 0.5 * sum of squared (robustified) residuals, Ceres convention
+  // 0.5 * sum of squared (robustified) residuals over every edge and used loop of the graph (Ceres
+  // convention; with reduce_chains evaluated on the full graph, not the reduced problem).
+  double initial_cost = 0.0;
   double final_cost = 0.0;
   int iterations = 0;
-  double solve_seconds = 0.0;      // Ceres time
+  double solve_seconds = 0.0;      // Ceres time (+ chain reduction and recovery)
   double rejection_seconds = 0.0;  // PCM time
   size_t num_vertices = 0;
   size_t num_edges = 0;
   size_t num_loops = 0;
-  std::vector<size_t> rejected_loops;       // indices into PoseGraph::loops()
+  size_t num_solved_vertices = 0;      // vertices in the Ceres problem (fewer with reduce_chains)
+  std::vector<size_t> rejected_loops;  // indices into PoseGraph::loops()
   std::vector<LoopPair> rejected_loop_ids;  // {query_id, match_id} of each rejected loop
   std::string ceres_message;
   std::string BriefReport() const;
@@ -186,6 +199,10 @@ class PoseGraph {
 
  private:
   size_t Index(int64_t id) const;
+  // 0.5 * sum of (robustified) squared residuals of every edge and every used loop at the current
+  // estimates (Sim(3) residuals; used when the solved problem is the reduced one).
+  double FullCost(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                  const std::vector<double>& switches) const;
   // Sets (*adj) to the pairwise consistency of all loops, computing only the pairs with a loop
   // index >= from (the rest of *adj must hold the earlier result).
   void ExtendPcmAdjacency(const PcmOptions& options, size_t from,
@@ -206,6 +223,7 @@ class PoseGraph {
   std::vector<Sim3d> poses_;      // current estimates as Sim3d (kept in sync with params_)
   std::vector<Sim3d> raw_poses_;
   std::vector<PoseGraphEdge> edges_;
+  std::vector<std::array<size_t, 2>> edge_ends_;  // vertex indices {from, to} of each edge
   std::vector<LoopConstraint> loops_;
   std::optional<int64_t> fixed_;
 };

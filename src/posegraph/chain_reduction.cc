@@ -1,0 +1,235 @@
+#include "chain_reduction.h"
+
+#include <Eigen/Cholesky>
+
+#include "sparseloop/core/check.h"
+
+namespace sparseloop::internal {
+namespace {
+
+using S3 = jet::Sim3<double>;
+
+S3 ToJet(const Sim3d& x) {
+  const Vector8d v = x.ToVector();
+  return S3::FromArray(v.data());
+}
+
+bool IsDiagonal(const Matrix7d& m) {
+  for (int c = 0; c < 7; ++c) {
+    for (int r = 0; r < 7; ++r) {
+      if (r != c && m(r, c) != 0.0) return false;
+    }
+  }
+  return true;
+}
+
+// True when the information is positive definite (rank-deficient 2D-in-7D edges have no
+// covariance and cannot be chained).
+bool Chainable(const Matrix7d& information) {
+  if (IsDiagonal(information)) return information.diagonal().minCoeff() > 0.0;
+  return Eigen::LLT<Matrix7d>(information).info() == Eigen::Success;
+}
+
+}  // namespace
+
+Matrix7d StepCovariance(const PoseGraphEdge& edge, bool reversed) {
+  Matrix7d cov;
+  if (IsDiagonal(edge.information)) {
+    cov = Matrix7d(edge.information.diagonal().cwiseInverse().asDiagonal());
+  } else {
+    cov = edge.information.llt().solve(Matrix7d::Identity());
+  }
+  if (!reversed) return cov;
+  // Inverting Z exp(e) gives Z^-1 exp(-Ad(Z) e).
+  const Matrix7d ad = Sim3EdgeCost::Adjoint(ToJet(edge.from_from_to));
+  return ad * cov * ad.transpose();
+}
+
+ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
+                            const std::vector<std::array<size_t, 2>>& ends,
+                            std::vector<bool> must_keep, int max_chain_length) {
+  SL_CHECK_MSG(max_chain_length >= 1, "max_chain_length must be >= 1, got {}", max_chain_length);
+  SL_CHECK_MSG(edges.size() == ends.size(), "edges ({}) and ends ({}) differ in size", edges.size(),
+               ends.size());
+  const size_t n = must_keep.size();
+  const size_t num_edges = edges.size();
+  // Incident edges of every vertex, compressed: incident[offset[v] .. offset[v + 1]).
+  std::vector<size_t> offset(n + 1, 0);
+  for (size_t e = 0; e < num_edges; ++e) {
+    SL_CHECK_MSG(ends[e][0] < n && ends[e][1] < n, "edge {} has a vertex index out of range", e);
+    ++offset[ends[e][0] + 1];
+    ++offset[ends[e][1] + 1];
+  }
+  for (size_t v = 0; v < n; ++v) offset[v + 1] += offset[v];
+  std::vector<size_t> incident(offset[n]);
+  {
+    std::vector<size_t> fill(offset.begin(), offset.end() - 1);
+    for (size_t e = 0; e < num_edges; ++e) {
+      incident[fill[ends[e][0]]++] = e;
+      incident[fill[ends[e][1]]++] = e;
+    }
+  }
+  const auto other_end = [&](size_t e, size_t v) {
+    return ends[e][0] == v ? ends[e][1] : ends[e][0];
+  };
+  // The other edge of a chain vertex (exactly two edges).
+  const auto other_edge = [&](size_t v, size_t e) {
+    return incident[offset[v]] == e ? incident[offset[v] + 1] : incident[offset[v]];
+  };
+  std::vector<bool> diagonal(num_edges), chainable(num_edges);
+  for (size_t e = 0; e < num_edges; ++e) {
+    diagonal[e] = IsDiagonal(edges[e].information);
+    chainable[e] = Chainable(edges[e].information);
+  }
+
+  ChainReduction out;
+  out.kept = std::move(must_keep);
+  for (size_t v = 0; v < n; ++v) {
+    if (out.kept[v]) continue;
+    const size_t* inc = incident.data() + offset[v];
+    const bool chain_vertex = offset[v + 1] - offset[v] == 2 && chainable[inc[0]] &&
+                              chainable[inc[1]] && other_end(inc[0], v) != other_end(inc[1], v);
+    if (!chain_vertex) out.kept[v] = true;
+  }
+
+  std::vector<bool> edge_done(num_edges, false);
+  std::vector<bool> in_chain(n, false);
+  std::vector<size_t> queue;
+  for (size_t v = 0; v < n; ++v) {
+    if (out.kept[v]) queue.push_back(v);
+  }
+  // Walks one chain from kept vertex `start` along `first_edge`. When the chain is cut at
+  // max_chain_length, returns the cut vertex and its other edge (the next chain to walk).
+  struct Next {
+    bool more = false;
+    size_t vertex = 0, edge = 0;
+  };
+  const auto walk = [&](size_t start, size_t first_edge) -> Next {
+    edge_done[first_edge] = true;
+    if (out.kept[other_end(first_edge, start)]) {
+      out.direct_edges.push_back(first_edge);
+      return {};
+    }
+    Next next_chain;
+    ReducedChain chain;
+    chain.from = start;
+    size_t u = start, e = first_edge;
+    for (;;) {
+      // The step along e leaving u: the measurement, inverted when e points into u.
+      const bool reversed = ends[e][0] != u;
+      const S3 measured = ToJet(edges[e].from_from_to);
+      chain.steps.push_back(reversed ? measured.Inverse() : measured);
+      chain.step_edges.push_back(e);
+      chain.step_reversed.push_back(reversed);
+      const size_t w = other_end(e, u);
+      if (out.kept[w]) {
+        chain.to = w;
+        break;
+      }
+      if (static_cast<int>(chain.steps.size()) == max_chain_length) {
+        out.kept[w] = true;  // cut the chain here; w starts the next one
+        next_chain = {true, w, other_edge(w, e)};
+        chain.to = w;
+        break;
+      }
+      chain.interior.push_back(w);
+      in_chain[w] = true;
+      const size_t next = other_edge(w, e);
+      edge_done[next] = true;
+      u = w;
+      e = next;
+    }
+    if (chain.to == chain.from) {
+      // A cycle back to its start (a ring of chain vertices): keep its last interior vertex, so
+      // that the chain has two distinct ends and its last edge becomes a direct edge.
+      SL_CHECK(!chain.interior.empty());
+      const size_t last = chain.interior.back();
+      chain.interior.pop_back();
+      in_chain[last] = false;
+      out.kept[last] = true;
+      chain.to = last;
+      out.direct_edges.push_back(chain.step_edges.back());
+      chain.steps.pop_back();
+      chain.step_edges.pop_back();
+      chain.step_reversed.pop_back();
+    }
+    // Composition and first-order covariance, accumulated from the last step backwards.
+    S3 suffix;  // Z_{i+1} ... Z_k
+    Matrix7d sigma = Matrix7d::Zero();
+    for (size_t i = chain.steps.size(); i-- > 0;) {
+      const Matrix7d a = Sim3EdgeCost::Adjoint(suffix.Inverse());
+      const size_t edge = chain.step_edges[i];
+      if (diagonal[edge] && !chain.step_reversed[i]) {
+        // a * diag(c) * a^T: one 7x7 product instead of two.
+        const Matrix7d scaled = a * edges[edge].information.diagonal().cwiseInverse().asDiagonal();
+        sigma.noalias() += scaled * a.transpose();
+      } else {
+        sigma.noalias() += a * StepCovariance(edges[edge], chain.step_reversed[i]) * a.transpose();
+      }
+      suffix = chain.steps[i] * suffix;
+    }
+    chain.from_from_to = suffix;
+    sigma = 0.5 * (sigma + sigma.transpose());
+    const Eigen::LLT<Matrix7d> llt(sigma);
+    SL_CHECK_MSG(llt.info() == Eigen::Success, "chain covariance is not positive definite");
+    // Sigma = L L^T, so S = L^-1 gives S^T S = Sigma^-1.
+    chain.sqrt_information = llt.matrixL().solve(Matrix7d::Identity());
+    out.chains.push_back(std::move(chain));
+    return next_chain;
+  };
+
+  for (;;) {
+    for (size_t qi = 0; qi < queue.size(); ++qi) {
+      const size_t a = queue[qi];
+      for (size_t j = offset[a]; j < offset[a + 1]; ++j) {
+        if (edge_done[incident[j]]) continue;
+        for (Next next = walk(a, incident[j]); next.more && !edge_done[next.edge];) {
+          next = walk(next.vertex, next.edge);
+        }
+      }
+    }
+    // Chain vertices no walk reached form rings without a kept vertex: keep one of each.
+    queue.clear();
+    for (size_t v = 0; v < n && queue.empty(); ++v) {
+      if (!out.kept[v] && !in_chain[v]) {
+        out.kept[v] = true;
+        queue.push_back(v);
+      }
+    }
+    if (queue.empty()) break;
+  }
+  for (size_t v = 0; v < n; ++v) out.num_kept += out.kept[v] ? 1 : 0;
+  return out;
+}
+
+void RecoverInterior(const ReducedChain& chain, const std::vector<PoseGraphEdge>& edges,
+                     const jet::Sim3<double>& world_from_first,
+                     const jet::Sim3<double>& world_from_last, std::vector<Vector8d>* params) {
+  const size_t interior = chain.interior.size();
+  if (interior == 0) return;
+  const jet::Vector7<double> delta =
+      (chain.from_from_to.Inverse() * (world_from_first.Inverse() * world_from_last)).Log();
+  // lambda = Sigma^-1 delta = S^T S delta; r_i = Sigma_i A_i^T lambda with A_i from the suffix
+  // Z_{i+1} ... Z_k, walked backwards.
+  const jet::Vector7<double> lambda =
+      chain.sqrt_information.transpose() * (chain.sqrt_information * delta);
+  std::vector<jet::Vector7<double>> r(interior);
+  S3 suffix = chain.steps.back();  // the suffix of step k - 1 (the last interior vertex)
+  for (size_t i = interior; i-- > 0;) {
+    const jet::Vector7<double> mu = Sim3EdgeCost::Adjoint(suffix.Inverse()).transpose() * lambda;
+    const PoseGraphEdge& edge = edges[chain.step_edges[i]];
+    if (!chain.step_reversed[i] && IsDiagonal(edge.information)) {
+      r[i] = mu.cwiseQuotient(edge.information.diagonal());
+    } else {
+      r[i] = StepCovariance(edge, chain.step_reversed[i]) * mu;
+    }
+    suffix = chain.steps[i] * suffix;
+  }
+  S3 pose = world_from_first;
+  for (size_t i = 0; i < interior; ++i) {
+    pose = pose * chain.steps[i] * S3::Exp(r[i]);
+    pose.ToArray((*params)[chain.interior[i]].data());
+  }
+}
+
+}  // namespace sparseloop::internal
