@@ -9,11 +9,6 @@ namespace {
 
 using S3 = jet::Sim3<double>;
 
-S3 ToJet(const Sim3d& x) {
-  const Vector8d v = x.ToVector();
-  return S3::FromArray(v.data());
-}
-
 bool IsDiagonal(const Matrix7d& m) {
   for (int c = 0; c < 7; ++c) {
     for (int r = 0; r < 7; ++r) {
@@ -25,8 +20,8 @@ bool IsDiagonal(const Matrix7d& m) {
 
 // True when the information is positive definite (rank-deficient 2D-in-7D edges have no
 // covariance and cannot be chained).
-bool Chainable(const Matrix7d& information) {
-  if (IsDiagonal(information)) return information.diagonal().minCoeff() > 0.0;
+bool Chainable(const Matrix7d& information, bool diagonal) {
+  if (diagonal) return information.diagonal().minCoeff() > 0.0;
   return Eigen::LLT<Matrix7d>(information).info() == Eigen::Success;
 }
 
@@ -41,7 +36,7 @@ Matrix7d StepCovariance(const PoseGraphEdge& edge, bool reversed) {
   }
   if (!reversed) return cov;
   // Inverting Z exp(e) gives Z^-1 exp(-Ad(Z) e).
-  const Matrix7d ad = Sim3EdgeCost::Adjoint(ToJet(edge.from_from_to));
+  const Matrix7d ad = Sim3EdgeCost::Adjoint(ToJetSim3(edge.from_from_to));
   return ad * cov * ad.transpose();
 }
 
@@ -79,7 +74,7 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
   std::vector<bool> diagonal(num_edges), chainable(num_edges);
   for (size_t e = 0; e < num_edges; ++e) {
     diagonal[e] = IsDiagonal(edges[e].information);
-    chainable[e] = Chainable(edges[e].information);
+    chainable[e] = Chainable(edges[e].information, diagonal[e]);
   }
 
   ChainReduction out;
@@ -117,7 +112,7 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
     for (;;) {
       // The step along e leaving u: the measurement, inverted when e points into u.
       const bool reversed = ends[e][0] != u;
-      const S3 measured = ToJet(edges[e].from_from_to);
+      const S3 measured = ToJetSim3(edges[e].from_from_to);
       chain.steps.push_back(reversed ? measured.Inverse() : measured);
       chain.step_edges.push_back(e);
       chain.step_reversed.push_back(reversed);

@@ -272,6 +272,11 @@ ceres::LossFunction* MakeLoss(RobustLoss loss, double scale) {
   return nullptr;
 }
 
+bool UsesSwitches(const PoseGraphOptions& options) {
+  return options.rejection == OutlierRejection::kSwitchable ||
+         options.rejection == OutlierRejection::kPcmAndSwitchable;
+}
+
 Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {
   Matrix7d info = loop.weight * loop.information;
   if (!loop.has_scale) {
@@ -355,8 +360,7 @@ double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bo
   // (Sim3EdgeCost's), without forming the square root of the information.
   const auto squared_error = [this](const Sim3d& a_from_b, const Matrix7d& information, size_t a,
                                     size_t b) {
-    const Vector8d z_vector = a_from_b.ToVector();
-    const jet::Sim3<double> z = jet::Sim3<double>::FromArray(z_vector.data());
+    const jet::Sim3<double> z = ToJetSim3(a_from_b);
     const jet::Sim3<double> ta = jet::Sim3<double>::FromArray(params_[a].data());
     const jet::Sim3<double> tb = jet::Sim3<double>::FromArray(params_[b].data());
     const jet::Vector7<double> e = (z.Inverse() * (ta.Inverse() * tb)).Log();
@@ -368,8 +372,7 @@ double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bo
     cost += term(edge_loss.get(),
                  squared_error(e.from_from_to, e.information, edge_ends_[k][0], edge_ends_[k][1]));
   }
-  const bool switchable = options.rejection == OutlierRejection::kSwitchable ||
-                          options.rejection == OutlierRejection::kPcmAndSwitchable;
+  const bool switchable = UsesSwitches(options);
   for (size_t k = 0; k < loops_.size(); ++k) {
     if (!use_loop[k]) continue;
     const LoopConstraint& loop = loops_[k];
@@ -408,8 +411,7 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
     for (size_t i : PcmConsistentLoopsIncremental(options.pcm)) use_loop[i] = true;
     summary.rejection_seconds = timer.ElapsedMs() / 1000.0;
   }
-  const bool switchable = options.rejection == OutlierRejection::kSwitchable ||
-                          options.rejection == OutlierRejection::kPcmAndSwitchable;
+  const bool switchable = UsesSwitches(options);
 
   // 2. The Ceres problem over the stored parameter blocks (only the kept ones when chains are
   //    reduced; see chain_reduction.h).
@@ -452,11 +454,10 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
   if (reduce) {
     for (const size_t e : reduction.direct_edges) add_edge(edges_[e]);
     for (const internal::ReducedChain& chain : reduction.chains) {
-      Vector8d z;
-      chain.from_from_to.ToArray(z.data());
-      problem.AddResidualBlock(Sim3EdgeCost::Create(Sim3d::FromVector(z), chain.sqrt_information),
-                               MakeLoss(options.edge_loss, options.loss_scale),
-                               params_[chain.from].data(), params_[chain.to].data());
+      problem.AddResidualBlock(
+          Sim3EdgeCost::Create(FromJetSim3(chain.from_from_to), chain.sqrt_information),
+          MakeLoss(options.edge_loss, options.loss_scale), params_[chain.from].data(),
+          params_[chain.to].data());
     }
   } else {
     for (const PoseGraphEdge& e : edges_) add_edge(e);

@@ -361,12 +361,6 @@ std::vector<std::array<size_t, 2>> EdgeEnds(const PoseGraph& g) {
   return ends;
 }
 
-Sim3d FromJet(const jet::Sim3<double>& x) {
-  Vector8d v;
-  x.ToArray(v.data());
-  return Sim3d::FromVector(v);
-}
-
 double PoseDistance(const Sim3d& a, const Sim3d& b) {
   return (a.ToMatrix4() - b.ToMatrix4()).cwiseAbs().maxCoeff();
 }
@@ -401,7 +395,8 @@ TEST(ChainReduction, KeepsLoopEndsAndGaugeCutsLongChainsAndComposesExactly) {
     for (size_t v : c.interior) ++covered[v];
     steps += c.steps.size();
     // The composed measurement is the raw relative pose between the chain's ends.
-    EXPECT_LT(PoseDistance(FromJet(c.from_from_to), s.raw[c.from].Inverse() * s.raw[c.to]), 1e-9);
+    EXPECT_LT(PoseDistance(FromJetSim3(c.from_from_to), s.raw[c.from].Inverse() * s.raw[c.to]),
+              1e-9);
   }
   EXPECT_EQ(steps, g.edges().size());
   for (size_t v = 0; v < ids.size(); ++v) EXPECT_EQ(covered[v] + (red.kept[v] ? 1 : 0), 1) << v;
@@ -426,7 +421,7 @@ TEST(ChainReduction, KeepsLoopEndsAndGaugeCutsLongChainsAndComposesExactly) {
   ASSERT_EQ(rr.chains.size(), 1u);
   EXPECT_EQ(rr.direct_edges.size(), 1u);
   const internal::ReducedChain& c = rr.chains[0];
-  EXPECT_LT(PoseDistance(FromJet(c.from_from_to), s.raw[c.from].Inverse() * s.raw[c.to]), 1e-9);
+  EXPECT_LT(PoseDistance(FromJetSim3(c.from_from_to), s.raw[c.from].Inverse() * s.raw[c.to]), 1e-9);
   PoseGraph branch = ring;
   PoseGraphEdge extra;
   extra.from = 3;
@@ -479,10 +474,7 @@ TEST(ChainReduction, ComposedCovarianceMatchesSampledChains) {
       const Eigen::Matrix<double, 7, 1> sd = edge.information.diagonal().cwiseInverse().cwiseSqrt();
       jet::Vector7<double> e;
       for (int d = 0; d < 7; ++d) e[d] = sd[d] * n01(rng);
-      Vector8d z;
-      z = edge.from_from_to.ToVector();
-      const jet::Sim3<double> measured =
-          jet::Sim3<double>::FromArray(z.data()) * jet::Sim3<double>::Exp(e);
+      const jet::Sim3<double> measured = ToJetSim3(edge.from_from_to) * jet::Sim3<double>::Exp(e);
       product = product * (edge.from < edge.to ? measured : measured.Inverse());
     }
     const jet::Vector7<double> x = (c.from_from_to.Inverse() * product).Log();

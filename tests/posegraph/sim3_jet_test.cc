@@ -23,11 +23,6 @@ Vector7d RandomTangent(std::mt19937_64& rng, double t_scale, double r_scale, dou
   return v;
 }
 
-jet::Sim3<double> ToJetSim3(const Sim3d& s) {
-  Vector8d v = s.ToVector();
-  return jet::Sim3<double>::FromArray(v.data());
-}
-
 TEST(Sim3Jet, ExpLogMatchCoreAcrossRegimes) {
   auto rng = test::SeededRng(1);
   // (translation, rotation, log-scale) magnitudes: generic, tiny rotation, tiny scale, both tiny,

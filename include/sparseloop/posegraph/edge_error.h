@@ -19,6 +19,18 @@ namespace sparseloop {
 
 using Matrix7d = Eigen::Matrix<double, 7, 7>;
 
+// Conversions between core's Sim3d and the templated double Sim(3) of sim3_jet.h (same storage
+// order, Sim3d::ToVector).
+inline jet::Sim3<double> ToJetSim3(const Sim3d& x) {
+  const Vector8d v = x.ToVector();
+  return jet::Sim3<double>::FromArray(v.data());
+}
+inline Sim3d FromJetSim3(const jet::Sim3<double>& x) {
+  Vector8d v;
+  x.ToArray(v.data());
+  return Sim3d::FromVector(v);
+}
+
 // S with S^T S = information for a symmetric positive semi-definite 7x7 matrix (eigen
 // decomposition, so rank-deficient information such as 2D edges embedded in 7D is allowed).
 // Throws std::invalid_argument for a non-symmetric or indefinite matrix.
@@ -72,12 +84,7 @@ class EdgeError {
 class Sim3EdgeCost : public ceres::SizedCostFunction<7, 8, 8> {
  public:
   Sim3EdgeCost(const Sim3d& a_from_b, const Matrix7d& sqrt_information)
-      : sqrt_information_(sqrt_information) {
-    const Sim3d inv = a_from_b.Inverse();
-    z_inv_.rotation = inv.rotation;
-    z_inv_.translation = inv.translation;
-    z_inv_.scale = inv.scale;
-  }
+      : z_inv_(ToJetSim3(a_from_b.Inverse())), sqrt_information_(sqrt_information) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
