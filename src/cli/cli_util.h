@@ -1,8 +1,15 @@
 #pragma once
 // Small helpers shared by the subcommands (parsing only; no algorithm lives in the CLI).
+#include <filesystem>
 #include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/io/atomic_file.h"
 
 namespace sparseloop::cli {
 
@@ -18,6 +25,27 @@ inline void Parse(CLI::App& app, int argc, char** argv) {
     std::cout << app.help("", CLI::AppFormatMode::All);
     throw;
   }
+}
+
+// Runs `check` and turns a FileError into std::invalid_argument (exit 2) that starts with the
+// flag the user typed: "--json out.fifo: expected a regular file ..., got a FIFO (named pipe)".
+template <typename Check>
+void NameTheFlag(const std::string& flag, Check&& check) {
+  try {
+    check();
+  } catch (const FileError& e) {
+    throw std::invalid_argument(flag + " " + e.what());
+  }
+}
+
+// Output checks done before any work, so that a bad output path fails at once, not after the run.
+inline void CheckOutputFileFlag(const std::string& flag, const std::string& path) {
+  NameTheFlag(flag, [&] { CheckOutputFile(path); });
+}
+// `dir` (an --out folder) and the files the command will write into it.
+inline void CheckOutputDirFlag(const std::string& flag, const std::string& dir,
+                               const std::vector<std::string>& file_names = {}) {
+  NameTheFlag(flag, [&] { CheckOutputDirectory(dir, file_names); });
 }
 
 }  // namespace sparseloop::cli

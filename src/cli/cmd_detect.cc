@@ -86,6 +86,7 @@ int RunDetect(int argc, char** argv) {
                  "persistent map (SQLite): earlier sessions in it are searched too (multi-session "
                  "loops, loops.csv match_session > 0); this run is stored as a new session");
   Parse(app, argc, argv);
+  CheckOutputDirFlag("--out", out_dir, {"loops.csv", "summary.json"});
 
   PipelineOptions pipeline_options;
   if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);

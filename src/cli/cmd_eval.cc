@@ -101,6 +101,7 @@ int RunEval(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--json", json_path, "write all results as JSON to this file (atomically)");
   Parse(app, argc, argv);
+  if (!json_path.empty()) CheckOutputFileFlag("--json", json_path);
 
   options.alignment = ParseAlignment(align);
   SL_CHECK_MSG(rpe_unit == "frames" || rpe_unit == "m", "--rpe-unit must be frames or m, got '{}'",

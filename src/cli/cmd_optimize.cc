@@ -33,6 +33,7 @@ int RunOptimize(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--threads", options.num_threads, "Ceres threads")->check(CLI::PositiveNumber);
   Parse(app, argc, argv);
+  CheckOutputFileFlag("--out", out);
 
   const std::map<std::string, RobustLoss> losses = {{"none", RobustLoss::kTrivial},
                                                     {"huber", RobustLoss::kHuber},

@@ -91,6 +91,7 @@ int RunRender(int argc, char** argv) {
       "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
   app.add_option("--out", out_dir, "output folder")->required();
   Parse(app, argc, argv);
+  CheckOutputDirFlag("--out", out_dir, {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt"});
 
   seq.num_threads = threads;
   seq.photometric_drift = !no_photometric;

@@ -24,6 +24,11 @@
 namespace sparseloop::cli {
 namespace {
 
+// Every file `run` writes into --out.
+const std::vector<std::string> kRunOutputFiles = {
+    "trajectory.txt", "trajectory_kitti.txt", "poses_raw.txt", "poses_gt.txt", "loops.csv",
+    "timings.csv",    "pr_curve.csv",         "gt_loops.txt",  "summary.json"};
+
 int RunRun(int argc, char** argv) {
   CLI::App app{"Detect loops, optimise the pose graph and write the corrected trajectory"};
   DetectorFlags flags;
@@ -41,6 +46,7 @@ int RunRun(int argc, char** argv) {
                  "A detected loop is 'correct' when the GT positions of its frames are closer "
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
   Parse(app, argc, argv);
+  CheckOutputDirFlag("--out", flags.out, kRunOutputFiles);
 
   PipelineOptions options = PipelineOptionsFromFlags(flags);
   if (!vertex.empty())

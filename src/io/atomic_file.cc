@@ -13,20 +13,95 @@
 
 namespace sparseloop {
 
-void WriteFileAtomically(const std::filesystem::path& path,
-                         const std::function<void(std::ostream&)>& writer) {
-  namespace fs = std::filesystem;
+namespace fs = std::filesystem;
+
+namespace {
+
+// "a directory", "a FIFO", ... for anything that is not a regular file; empty otherwise.
+std::string NotRegularKind(fs::file_type type) {
+  switch (type) {
+    case fs::file_type::directory:
+      return "a directory";
+    case fs::file_type::fifo:
+      return "a FIFO (named pipe)";
+    case fs::file_type::socket:
+      return "a socket";
+    case fs::file_type::character:
+      return "a character device";
+    case fs::file_type::block:
+      return "a block device";
+    case fs::file_type::regular:
+    case fs::file_type::not_found:
+      return {};
+    default:
+      return "not a regular file";
+  }
+}
+
+// A directory we can create files in, or the reason why not (empty when fine).
+std::string DirectoryProblem(const fs::path& dir) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(dir, ec);
+  if (status.type() == fs::file_type::not_found) return dir.string() + " is missing";
+  if (status.type() != fs::file_type::directory) return dir.string() + " is not a directory";
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    return fmt::format("{} is not writable: {}", dir.string(), std::strerror(errno));
+  }
+  return {};
+}
+
+}  // namespace
+
+fs::path CheckOutputFile(const fs::path& path) {
   const std::string name = path.string();
   if (path.empty() || !path.has_filename()) {
     throw FileError(name, 0, "a file path with a file name", "'" + name + "'");
   }
-  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  // Follow symbolic links to the file that will be replaced; the links stay as they are.
+  fs::path target = path;
   std::error_code ec;
-  if (!fs::is_directory(parent, ec)) {
-    throw FileError(name, 0, "an existing output directory", parent.string() + " is missing");
+  for (int hops = 0; fs::is_symlink(fs::symlink_status(target, ec)); ++hops) {
+    if (hops == 40) throw FileError(name, 0, "a symbolic link that ends", "a loop of links");
+    const fs::path link = fs::read_symlink(target, ec);
+    if (ec) throw FileError(name, 0, "a readable symbolic link", ec.message());
+    target = (link.is_absolute() ? link : target.parent_path() / link).lexically_normal();
   }
-  if (fs::is_directory(path, ec)) throw FileError(name, 0, "a file path", "a directory");
-  const fs::path tmp = fs::path(name + fmt::format(".tmp.{}", static_cast<long>(::getpid())));
+  const std::string via = target == path ? std::string() : " (the target of the link)";
+  if (const std::string kind = NotRegularKind(fs::status(target, ec).type()); !kind.empty()) {
+    throw FileError(name, 0, "a regular file or a new file name",
+                    target == path ? kind : target.string() + via + " is " + kind);
+  }
+  const fs::path parent = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  if (const std::string problem = DirectoryProblem(parent); !problem.empty()) {
+    throw FileError(name, 0, "an existing, writable output directory", problem);
+  }
+  return target;
+}
+
+void CheckOutputDirectory(const fs::path& dir, const std::vector<std::string>& file_names) {
+  const std::string name = dir.string();
+  if (dir.empty()) throw FileError(name, 0, "an output directory", "an empty path");
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (const std::string problem = DirectoryProblem(dir); !problem.empty()) {
+      throw FileError(name, 0, "a writable output directory", problem);
+    }
+    for (const auto& file : file_names) CheckOutputFile(dir / file);
+    return;
+  }
+  // A new directory: its nearest existing parent must be a writable directory.
+  fs::path parent = fs::absolute(dir, ec).lexically_normal();
+  while (parent.has_relative_path() && !fs::exists(parent, ec)) parent = parent.parent_path();
+  if (const std::string problem = DirectoryProblem(parent); !problem.empty()) {
+    throw FileError(name, 0, "an output directory that can be created", problem);
+  }
+}
+
+void WriteFileAtomically(const fs::path& path, const std::function<void(std::ostream&)>& writer) {
+  const std::string name = path.string();
+  const fs::path target = CheckOutputFile(path);
+  const fs::path tmp =
+      fs::path(target.string() + fmt::format(".tmp.{}", static_cast<long>(::getpid())));
   auto remove_tmp = [&tmp] {
     std::error_code ignored;
     fs::remove(tmp, ignored);
@@ -52,7 +127,8 @@ void WriteFileAtomically(const std::filesystem::path& path,
       throw FileError(name, 0, "a complete write", "stream error while writing " + tmp.string());
     }
   }
-  fs::rename(tmp, path, ec);
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
   if (ec) {
     remove_tmp();
     throw FileError(name, 0, "a successful rename from " + tmp.string(), ec.message());

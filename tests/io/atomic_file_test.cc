@@ -1,5 +1,11 @@
 #include "sparseloop/io/atomic_file.h"
 
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cstring>
 #include <stdexcept>
 
 #include <gtest/gtest.h>
@@ -59,6 +65,89 @@ TEST(AtomicFile, TargetThatIsADirectoryIsFileError) {
   EXPECT_THROW(WriteFileAtomically(dir / "sub", [](std::ostream& os) { os << "x"; }), FileError);
   EXPECT_TRUE(std::filesystem::is_directory(dir / "sub"));
   EXPECT_EQ(CountEntries(dir), 1u);
+}
+
+// Outputs are regular files only: a FIFO, a socket or a directory given as the output path is
+// refused with a FileError naming the path, and is still there, untouched, afterwards.
+void ExpectRefused(const std::filesystem::path& path, const std::string& kind) {
+  try {
+    WriteFileAtomically(path, [](std::ostream& os) { os << "x"; });
+    ADD_FAILURE() << "wrote over " << kind << " " << path;
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), path.string());
+    EXPECT_NE(std::string(e.what()).find(kind), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(CheckOutputFile(path), FileError);
+}
+
+TEST(AtomicFile, FifoSocketAndDirectoryAreRefusedAndKept) {
+  const auto dir = test::TempDir();
+  const auto fifo = dir / "out.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  ExpectRefused(fifo, "FIFO");
+  EXPECT_TRUE(std::filesystem::is_fifo(fifo));
+
+  const auto sock_path = dir / "out.sock";
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  ASSERT_LT(sock_path.string().size(), sizeof(addr.sun_path));
+  std::strcpy(addr.sun_path, sock_path.c_str());
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)), 0);
+  ExpectRefused(sock_path, "socket");
+  EXPECT_TRUE(std::filesystem::is_socket(sock_path));
+  ::close(fd);
+
+  std::filesystem::create_directories(dir / "sub");
+  ExpectRefused(dir / "sub", "directory");
+  EXPECT_EQ(CountEntries(dir), 3u);  // no temporaries left
+}
+
+TEST(AtomicFile, SymlinkIsWrittenThroughToItsTarget) {
+  const auto dir = test::TempDir();
+  std::filesystem::create_directories(dir / "real");
+  const auto target = test::WriteText(dir / "real" / "out.txt", "old");
+  std::filesystem::create_symlink("real/out.txt", dir / "link.txt");     // relative link
+  std::filesystem::create_symlink(dir / "link.txt", dir / "link2.txt");  // link to a link
+  EXPECT_EQ(CheckOutputFile(dir / "link2.txt"), target);
+  WriteFileAtomically(dir / "link2.txt", [](std::ostream& os) { os << "new"; });
+  EXPECT_TRUE(std::filesystem::is_symlink(dir / "link.txt"));
+  EXPECT_TRUE(std::filesystem::is_symlink(dir / "link2.txt"));
+  EXPECT_EQ(test::ReadText(target), "new");
+  EXPECT_EQ(CountEntries(dir / "real"), 1u);
+
+  // A dangling link creates its target; a link to a FIFO is refused like the FIFO.
+  std::filesystem::create_symlink("real/created.txt", dir / "dangling.txt");
+  WriteFileAtomically(dir / "dangling.txt", [](std::ostream& os) { os << "made"; });
+  EXPECT_TRUE(std::filesystem::is_symlink(dir / "dangling.txt"));
+  EXPECT_EQ(test::ReadText(dir / "real" / "created.txt"), "made");
+  ASSERT_EQ(::mkfifo((dir / "real" / "pipe").c_str(), 0600), 0);
+  std::filesystem::create_symlink("real/pipe", dir / "to_pipe");
+  ExpectRefused(dir / "to_pipe", "FIFO");
+  EXPECT_TRUE(std::filesystem::is_fifo(dir / "real" / "pipe"));
+
+  // A loop of links is an error, not a hang.
+  std::filesystem::create_symlink("loop_b", dir / "loop_a");
+  std::filesystem::create_symlink("loop_a", dir / "loop_b");
+  EXPECT_THROW(CheckOutputFile(dir / "loop_a"), FileError);
+}
+
+TEST(AtomicFile, CheckOutputDirectory) {
+  const auto dir = test::TempDir();
+  EXPECT_NO_THROW(CheckOutputDirectory(dir, {"a.txt"}));
+  EXPECT_NO_THROW(CheckOutputDirectory(dir / "new" / "deeper"));  // created later
+  EXPECT_FALSE(std::filesystem::exists(dir / "new"));
+  const auto file = test::WriteText(dir / "file.txt", "x");
+  EXPECT_THROW(CheckOutputDirectory(file), FileError);
+  EXPECT_THROW(CheckOutputDirectory(file / "sub"), FileError);
+  ASSERT_EQ(::mkfifo((dir / "loops.csv").c_str(), 0600), 0);
+  try {
+    CheckOutputDirectory(dir, {"summary.json", "loops.csv"});
+    ADD_FAILURE() << "accepted a FIFO inside the output directory";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), (dir / "loops.csv").string());
+  }
 }
 
 }  // namespace

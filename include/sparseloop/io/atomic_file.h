@@ -1,15 +1,33 @@
 #pragma once
-// Atomic file output: a reader never sees a half-written file.
+// Atomic file output: a reader never sees a half-written file. Outputs are regular files only.
 #include <filesystem>
 #include <functional>
 #include <ostream>
+#include <string>
+#include <vector>
 
 namespace sparseloop {
 
-// Calls `writer` on a stream to "<path>.tmp.<pid>" in the same directory, flushes and closes it,
-// then renames it over `path` (atomic on POSIX file systems). On any failure (directory missing or
-// not writable, stream error, rename failure) the temporary file is removed and FileError(path, 0,
-// ...) is thrown; an exception thrown by `writer` also removes the temporary and is rethrown as is.
+// Checks, without writing anything, that WriteFileAtomically(path, ...) can write `path`, and
+// returns the file it will replace: `path` itself, or, when `path` is a symbolic link (a chain of
+// links is followed), the link's final target (the link itself is never replaced). Throws
+// FileError(path, 0, ...) when the path (or the target) is a directory, FIFO, socket, character or
+// block device, when its directory is missing or not writable, or when the links form a loop.
+std::filesystem::path CheckOutputFile(const std::filesystem::path& path);
+
+// Checks, without creating anything, that `dir` can hold output files: an existing writable
+// directory, or a new path whose nearest existing parent is a writable directory. When `dir`
+// exists, each of `file_names` inside it is checked with CheckOutputFile. FileError naming the
+// directory or the file otherwise.
+void CheckOutputDirectory(const std::filesystem::path& dir,
+                          const std::vector<std::string>& file_names = {});
+
+// Calls `writer` on a stream to "<target>.tmp.<pid>" in the target's directory, flushes and
+// closes it, then renames it over the target (atomic on POSIX file systems). The target is the
+// one CheckOutputFile returns (a symlink is written through to its target). On any failure (path
+// not a regular file, directory missing or not writable, stream error, rename failure) the
+// temporary file is removed and FileError(path, 0, ...) is thrown; an exception thrown by
+// `writer` also removes the temporary and is rethrown as is.
 void WriteFileAtomically(const std::filesystem::path& path,
                          const std::function<void(std::ostream&)>& writer);
 
