@@ -25,9 +25,17 @@ void PrintUsage() {
   std::sort(commands.begin(), commands.end(),
             [](const Command& a, const Command& b) { return a.name < b.name; });
   std::cout << "sparseloop: loop closure for monocular visual SLAM\n\n"
-               "Usage: sparseloop <command> [options]   (sparseloop <command> --help)\n\n"
+               "Usage: sparseloop <command> [options]   (sparseloop <command> --help)\n"
+               "       sparseloop --version\n\n"
                "Commands:\n";
   for (const auto& c : commands) std::printf("  %-10s %s\n", c.name.c_str(), c.help.c_str());
+}
+
+// "sparseloop 0.1.0 (git commit 0123456789ab)": CMake's project VERSION and the commit the build
+// was configured from (src/cli/CMakeLists.txt; "unknown" outside a git checkout).
+void PrintVersion() {
+  std::cout << "sparseloop " << SPARSELOOP_VERSION << " (git commit " << SPARSELOOP_GIT_COMMIT
+            << ")\n";
 }
 }  // namespace
 
@@ -38,6 +46,10 @@ int main(int argc, char** argv) {
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
     sparseloop::cli::PrintUsage();
     return argc < 2 ? 2 : 0;
+  }
+  if (std::string(argv[1]) == "--version") {
+    sparseloop::cli::PrintVersion();
+    return 0;
   }
   const std::string name = argv[1];
   for (const auto& command : Registry()) {

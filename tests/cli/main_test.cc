@@ -1,6 +1,11 @@
+#include <fstream>
+#include <regex>
+#include <sstream>
+
 #include <gtest/gtest.h>
 
 #include "cli/cli_runner.h"
+#include "test_util.h"
 
 namespace sparseloop::test {
 namespace {
@@ -33,6 +38,26 @@ TEST(Cli, UnknownOptionExits2AndPointsToHelp) {
   const CliResult r = RunCli({"eval", "--no-such-flag"});
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("sparseloop eval --help"), std::string::npos) << r.err;
+}
+
+// `sparseloop --version`: the version of CMakeLists.txt's project() and the git commit captured
+// at configure time (12 hex digits, or "unknown" outside a git checkout).
+TEST(Cli, VersionPrintsProjectVersionAndGitCommit) {
+  std::ifstream cmake(SourceDir() / "CMakeLists.txt");
+  std::stringstream text;
+  text << cmake.rdbuf();
+  std::smatch version;
+  const std::string cmake_text = text.str();
+  ASSERT_TRUE(std::regex_search(cmake_text, version,
+                                std::regex(R"(project\(sparseloop VERSION ([0-9.]+))")));
+  const CliResult r = RunCli({"--version"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(std::regex_match(
+      r.out, std::regex("sparseloop " +
+                        std::regex_replace(version[1].str(), std::regex(R"(\.)"), R"(\.)") +
+                        R"( \(git commit ([0-9a-f]{12}|unknown)\)\n)")))
+      << r.out;
+  EXPECT_NE(RunCli({"--help"}).out.find("sparseloop --version"), std::string::npos);
 }
 
 }  // namespace
