@@ -8,6 +8,9 @@ execute_process(COMMAND ${CMAKE_COMMAND} --install ${BINARY_DIR} --prefix ${pref
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "install failed: ${rc}")
 endif()
+if(NOT EXISTS ${prefix}/share/doc/sparseloop/LICENSE)
+  message(FATAL_ERROR "install did not put LICENSE in ${prefix}/share/doc/sparseloop")
+endif()
 execute_process(COMMAND ${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/consumer -B ${build}
   -G ${CMAKE_GENERATOR} -DCMAKE_PREFIX_PATH=${prefix} RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
