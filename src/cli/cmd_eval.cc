@@ -1,5 +1,6 @@
 // sparseloop eval: trajectory metrics (ATE, RPE, KITTI devkit) and loop precision/recall.
 // Parses arguments, calls the eval library, prints a table and optionally writes JSON.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <optional>
@@ -127,9 +128,25 @@ int RunEval(int argc, char** argv) {
   options.Check();
 
   const TrajectoryEvaluation e = EvaluateTrajectory(gt, est, options);
+  if (e.status == EvaluationStatus::kNoAssociation) {
+    const std::string how =
+        options.association.method == AssociationMethod::kTimestamp
+            ? fmt::format("by timestamp within --max-dt {} s", options.association.max_dt)
+            : "by frame index";
+    throw std::invalid_argument(fmt::format(
+        "no pose of --est {} ({} poses) could be associated with a pose of --gt {} ({} poses) "
+        "{}: nothing to evaluate",
+        est_path, est.size(), gt_path, gt.size(), how));
+  }
 
   std::optional<std::vector<LoopPair>> gt_loops;
-  if (!gt_loops_path.empty()) gt_loops = ReadLoopPairs(gt_loops_path);
+  if (!gt_loops_path.empty()) {
+    // Pairs must name frames of --gt: ids past its last frame are an error with the line.
+    LoopPairReadOptions read_options;
+    for (const StampedPose& p : gt.poses)
+      read_options.num_frames = std::max(read_options.num_frames.value_or(0), p.frame + 1);
+    gt_loops = ReadLoopPairs(gt_loops_path, read_options);
+  }
   if (!derive_loops.empty()) gt_loops = DeriveGtLoops(gt, gt_loop_options);
   std::optional<LoopPrResult> loops;
   if (!loops_path.empty())
@@ -141,33 +158,29 @@ int RunEval(int argc, char** argv) {
   std::cout << fmt::format("ground truth {} ({} poses)\n", gt_path, gt.size());
   std::cout << fmt::format("associated   {} pairs by {}\n", e.association.pairs.size(),
                            ToString(options.association.method));
-  if (e.status != EvaluationStatus::kOk) {
-    std::cout << "no estimate pose matches the ground truth: no trajectory metrics\n";
-  } else {
-    std::cout << fmt::format("alignment    {} ({}), scale {:.6f}, rms residual {} m\n",
-                             ToString(e.alignment.type), ToString(e.alignment.status),
-                             e.alignment.gt_from_est.scale, Num(e.alignment.rms_residual));
-    PrintStats("ATE [m]", e.ate, "m");
-    if (e.rpe) {
-      std::cout << fmt::format("RPE over {} {}:\n", options.rpe.delta, ToString(options.rpe.unit));
-      PrintStats("  translation", e.rpe->translation, "m");
-      if (e.rpe->rotation_deg) {
-        PrintStats("  rotation", *e.rpe->rotation_deg, "deg");
-      } else {
-        std::cout << "  rotation      n/a (positions-only trajectory)\n";
-      }
+  std::cout << fmt::format("alignment    {} ({}), scale {:.6f}, rms residual {} m\n",
+                           ToString(e.alignment.type), ToString(e.alignment.status),
+                           e.alignment.gt_from_est.scale, Num(e.alignment.rms_residual));
+  PrintStats("ATE [m]", e.ate, "m");
+  if (e.rpe) {
+    std::cout << fmt::format("RPE over {} {}:\n", options.rpe.delta, ToString(options.rpe.unit));
+    PrintStats("  translation", e.rpe->translation, "m");
+    if (e.rpe->rotation_deg) {
+      PrintStats("  rotation", *e.rpe->rotation_deg, "deg");
+    } else {
+      std::cout << "  rotation      n/a (positions-only trajectory)\n";
     }
-    if (e.kitti) {
-      std::cout << fmt::format("KITTI        t_err {} %  r_err {} deg/100m  ({} segments)\n",
-                               Num(e.kitti->t_err_pct), Num(e.kitti->r_err_deg_per_100m),
-                               e.kitti->num_segments);
-      if (!e.kitti->per_length.empty()) {
-        std::cout << fmt::format("  {:>8}  {:>8}  {:>12}  {:>18}\n", "length_m", "segments",
-                                 "t_err_pct", "r_err_deg_per_100m");
-        for (const auto& p : e.kitti->per_length) {
-          std::cout << fmt::format("  {:>8.0f}  {:>8}  {:>12}  {:>18}\n", p.length, p.count,
-                                   Num(p.t_err_pct), Num(p.r_err_deg_per_100m));
-        }
+  }
+  if (e.kitti) {
+    std::cout << fmt::format("KITTI        t_err {} %  r_err {} deg/100m  ({} segments)\n",
+                             Num(e.kitti->t_err_pct), Num(e.kitti->r_err_deg_per_100m),
+                             e.kitti->num_segments);
+    if (!e.kitti->per_length.empty()) {
+      std::cout << fmt::format("  {:>8}  {:>8}  {:>12}  {:>18}\n", "length_m", "segments",
+                               "t_err_pct", "r_err_deg_per_100m");
+      for (const auto& p : e.kitti->per_length) {
+        std::cout << fmt::format("  {:>8.0f}  {:>8}  {:>12}  {:>18}\n", p.length, p.count,
+                                 Num(p.t_err_pct), Num(p.r_err_deg_per_100m));
       }
     }
   }

@@ -1,5 +1,7 @@
 #include "sparseloop/io/loop_pairs.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "io/text_parsing.h"
@@ -7,7 +9,8 @@
 
 namespace sparseloop {
 
-std::vector<LoopPair> ReadLoopPairs(const std::filesystem::path& path) {
+std::vector<LoopPair> ReadLoopPairs(const std::filesystem::path& path,
+                                    const LoopPairReadOptions& options) {
   const io_internal::TextFile file(path);
   const auto& name = file.name();
   std::vector<LoopPair> pairs;
@@ -23,6 +26,12 @@ std::vector<LoopPair> ReadLoopPairs(const std::filesystem::path& path) {
     }
     if (i == j) {
       throw FileError(name, line.number, "two different frame ids", fmt::format("{} {}", i, j));
+    }
+    if (options.num_frames && std::max(i, j) >= *options.num_frames) {
+      throw FileError(
+          name, line.number,
+          fmt::format("frame ids 0..{} (the trajectory's frames)", *options.num_frames - 1),
+          fmt::format("{} {}", i, j));
     }
     pairs.push_back(LoopPair{std::max(i, j), std::min(i, j)});
   }

@@ -154,5 +154,57 @@ TEST(CliEval, MissingFileExits2) {
   EXPECT_EQ(RunCli({"eval", "--gt", (dir / "gt.txt").string()}).exit_code, 2);  // --est missing
 }
 
+// No estimate pose pairs with a ground-truth pose: exit 2 naming both files, not an empty table.
+TEST(CliEval, NoAssociatedPairsExits2NamingBothFiles) {
+  const auto dir = FixtureDir();
+  {
+    std::ofstream gt(dir / "gt_tum.txt");
+    std::ofstream est(dir / "est_tum.txt");
+    for (int i = 0; i < 8; ++i) {
+      gt << i << " " << i << " 0 0 0 0 0 1\n";
+      est << 1000 + i << " " << i << " 0 0 0 0 0 1\n";  // another time base
+    }
+  }
+  const auto r = RunCli({"eval", "--gt", (dir / "gt_tum.txt").string(), "--est",
+                         (dir / "est_tum.txt").string(), "--json", (dir / "m.json").string()});
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("--est " + (dir / "est_tum.txt").string()), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--gt " + (dir / "gt_tum.txt").string()), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--max-dt"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(".cc:"), std::string::npos) << r.err;  // no source path
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.json"));
+}
+
+// GT loop pairs naming frames past the end of --gt (another sequence, 1-based ids) are an error
+// with the file and line; pairs written (earlier, later) score exactly as (later, earlier).
+TEST(CliEval, GtLoopsOutOfRangeExit2AndReversedPairsScoreTheSame) {
+  const auto dir = FixtureDir();
+  WriteHandMadePositions(dir / "gt.txt");  // frames 0..7
+  {
+    std::ofstream out(dir / "loops.csv");
+    out << "query,match,score\n6,0,0.9\n7,2,0.8\n5,1,0.7\n";
+  }
+  std::ofstream(dir / "later_first.txt") << "6 0\n7 2\n";
+  std::ofstream(dir / "earlier_first.txt") << "# match query\n0 6\n2 7\n";
+  std::ofstream(dir / "one_based.txt") << "7 1\n8 3\n";
+  auto eval = [&](const char* gt_loops) {
+    return RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est", (dir / "gt.txt").string(),
+                   "--align", "none", "--gt-loops", (dir / gt_loops).string(), "--loops",
+                   (dir / "loops.csv").string()});
+  };
+  const auto later_first = eval("later_first.txt");
+  const auto earlier_first = eval("earlier_first.txt");
+  ASSERT_EQ(later_first.exit_code, 0) << later_first.err;
+  ASSERT_EQ(earlier_first.exit_code, 0) << earlier_first.err;
+  EXPECT_NE(later_first.out.find("3 detections, 2 correct"), std::string::npos) << later_first.out;
+  EXPECT_NE(earlier_first.out.find("3 detections, 2 correct"), std::string::npos)
+      << earlier_first.out;
+  const auto out_of_range = eval("one_based.txt");
+  EXPECT_EQ(out_of_range.exit_code, 2);
+  EXPECT_NE(out_of_range.err.find((dir / "one_based.txt").string() + ":2:"), std::string::npos)
+      << out_of_range.err;
+  EXPECT_NE(out_of_range.err.find("0..7"), std::string::npos) << out_of_range.err;
+}
+
 }  // namespace
 }  // namespace sparseloop::test

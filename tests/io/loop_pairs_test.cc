@@ -53,6 +53,21 @@ TEST(LoopPairs, MalformedLinesNameFileAndLine) {
   }
 }
 
+TEST(LoopPairs, IdsPastTheTrajectoryAreAFileErrorWithTheLine) {
+  const auto path = test::WriteText(test::TempDir() / "pairs.txt", "# c\n9 0\n3 10\n");
+  LoopPairReadOptions options;
+  options.num_frames = 10;
+  try {
+    ReadLoopPairs(path, options);
+    ADD_FAILURE() << "no FileError";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.line(), 3) << e.what();
+    EXPECT_NE(e.expected().find("0..9"), std::string::npos) << e.what();
+  }
+  options.num_frames = 11;
+  EXPECT_EQ(ReadLoopPairs(path, options).size(), 2u);
+}
+
 TEST(LoopPairs, MissingFileIsFileError) {
   EXPECT_THROW(ReadLoopPairs(test::TempDir() / "none.txt"), FileError);
 }
