@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include <fmt/format.h>
+#include <Eigen/Dense>
 
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/quaternion.h"
@@ -104,6 +105,18 @@ struct Parser {
     for (int i = 0; i < count; ++i) v[i] = Number(what);
     return v;
   }
+  // An edge's information matrix as written in the file must be positive definite: an all-zero
+  // or singular one would give the edge no (or a degenerate) weight instead of an error.
+  template <typename Matrix>
+  void RequirePositiveDefinite(const Matrix& information) const {
+    if (information.isZero(0.0)) Fail("a positive-definite information matrix", "all zeros");
+    const Eigen::LLT<Matrix> llt(information);
+    if (llt.info() != Eigen::Success) {
+      const Eigen::SelfAdjointEigenSolver<Matrix> eig(information, Eigen::EigenvaluesOnly);
+      Fail("a positive-definite information matrix",
+           fmt::format("smallest eigenvalue {:.6g}", eig.eigenvalues().minCoeff()));
+    }
+  }
 };
 
 }  // namespace
@@ -123,6 +136,7 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
   std::vector<PoseGraphEdge> edges;
   std::vector<int> edge_lines;
   std::optional<int64_t> fixed;
+  int fixed_line = 0;
   auto set_dim = [&](Dim d) {
     if (dim != Dim::kUnknown && dim != d) p.Fail("records of one dimension (2D or 3D)", "a mix");
     dim = d;
@@ -175,6 +189,7 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
       }
       const std::vector<double> upper = p.Numbers(21, "information");
       p.End();
+      p.RequirePositiveDefinite(UpperToSymmetric(upper));
       e.from_from_to = Sim3d(1.0, q, t);
       e.information = Embed6(UpperToSymmetric(upper), tag == "EDGE3" ? 1.0 : 0.5);
       edges.push_back(e);
@@ -190,6 +205,8 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
       e.from_from_to = Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0));
       const int idx[3] = {0, 1, 5};
       const double m[3][3] = {{u[0], u[1], u[2]}, {u[1], u[3], u[4]}, {u[2], u[4], u[5]}};
+      p.RequirePositiveDefinite(Eigen::Matrix3d{
+          {m[0][0], m[0][1], m[0][2]}, {m[1][0], m[1][1], m[1][2]}, {m[2][0], m[2][1], m[2][2]}});
       e.information.setZero();
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) e.information(idx[r], idx[c]) = m[r][c];
@@ -197,6 +214,7 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
       edge_lines.push_back(p.line_no);
     } else if (tag == "FIX") {
       fixed = p.Id("fixed vertex id");
+      fixed_line = p.line_no;
       p.End();
     } else {
       p.Fail("VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2, VERTEX3, EDGE3 or FIX",
@@ -205,7 +223,20 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
   }
   if (dim == Dim::kUnknown) throw FileError(name, 0, "at least one vertex or edge", "none");
 
-  // Vertices only referenced by edges: chain the measurements from the lowest id.
+  // A file with VERTEX lines defines every vertex: an edge to an id it never defined is a typo or
+  // a truncated file, not a vertex to invent.
+  if (!vertices.empty()) {
+    for (size_t k = 0; k < edges.size(); ++k) {
+      for (const int64_t id : {edges[k].from, edges[k].to}) {
+        if (!vertices.count(id)) {
+          throw FileError(name, edge_lines[k], "an edge between vertices defined by VERTEX lines",
+                          fmt::format("edge {} -> {}: vertex {} is not defined", edges[k].from,
+                                      edges[k].to, id));
+        }
+      }
+    }
+  }
+  // Edges-only file: no vertex is defined; chain the measurements from the lowest id.
   if (vertices.empty()) {
     int64_t root = edges.front().from;
     for (const auto& e : edges) root = std::min({root, e.from, e.to});
@@ -245,7 +276,9 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
     }
   }
   if (fixed) {
-    if (!graph.HasVertex(*fixed)) throw FileError(name, 0, "FIX of a known vertex", "unknown id");
+    if (!graph.HasVertex(*fixed)) {
+      throw FileError(name, fixed_line, "FIX of a known vertex", fmt::format("id {}", *fixed));
+    }
     graph.SetFixedVertex(*fixed);
   }
   return graph;

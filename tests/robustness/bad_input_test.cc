@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <sstream>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -15,6 +16,7 @@
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/pipeline/pipeline.h"
+#include "sparseloop/posegraph/g2o.h"
 #include "test_util.h"
 
 namespace sparseloop {
@@ -248,6 +250,55 @@ TEST_F(BadSequence, PoseFileShorterThanImageList) {
     EXPECT_NE(std::string(e.what()).find("short.txt"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("6 images"), std::string::npos) << e.what();
   }
+}
+
+// ------------------------------------------------------------------------------------ g2o files
+
+// Expects ReadG2o(text) to throw a FileError at `line` whose message contains `message`.
+void ExpectG2oError(const std::string& text, int line, const std::string& message) {
+  std::istringstream in(text);
+  try {
+    ReadG2o(in, "graph.g2o");
+    ADD_FAILURE() << "accepted:\n" << text;
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), "graph.g2o");
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+  }
+}
+
+const char* kSe2Info = " 1 0 0 1 0 1";  // identity, upper triangle
+
+TEST(BadG2o, EdgeToAnUndefinedVertexWhenTheFileHasVertices) {
+  const std::string vertices = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n";
+  const std::string edge01 = std::string("EDGE_SE2 0 1 1 0 0") + kSe2Info + "\n";
+  const std::string edge12 = std::string("EDGE_SE2 1 2 1 0 0") + kSe2Info + "\n";
+  ExpectG2oError(vertices + edge01 + edge12, 4, "vertex 2 is not defined");
+  // An edges-only file still chains its vertices from the lowest id (docs/POSEGRAPH.md).
+  std::istringstream edges_only(edge01 + edge12);
+  const PoseGraph graph = ReadG2o(edges_only, "edges.g2o");
+  EXPECT_EQ(graph.num_vertices(), 3u);
+  // FIX of an unknown vertex names its line.
+  ExpectG2oError(vertices + edge01 + "FIX 7\n", 4, "FIX of a known vertex");
+}
+
+TEST(BadG2o, ZeroOrIndefiniteInformationNamesTheLine) {
+  const std::string vertices = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n";
+  ExpectG2oError(vertices + "EDGE_SE2 0 1 1 0 0 0 0 0 0 0 0\n", 3, "all zeros");
+  ExpectG2oError(vertices + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 0\n", 3, "positive-definite");
+  ExpectG2oError(vertices + "EDGE_SE2 0 1 1 0 0 1 2 0 1 0 1\n", 3, "smallest eigenvalue -1");
+  const std::string se3 =
+      "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n"
+      "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1";
+  std::string zeros, indefinite;  // 21 upper-triangular entries
+  for (int r = 0; r < 6; ++r) {
+    for (int c = r; c < 6; ++c) {
+      zeros += " 0";
+      indefinite += r != c ? " 0" : (r == 5 ? " -1" : " 1");  // identity but one -1
+    }
+  }
+  ExpectG2oError(se3 + zeros + "\n", 3, "all zeros");
+  ExpectG2oError(se3 + indefinite + "\n", 3, "positive-definite");
 }
 
 }  // namespace
