@@ -95,6 +95,7 @@ int RunDetect(int argc, char** argv) {
   if (!search_name.empty()) options.search.strategy = ParseSearchStrategy(search_name);
 
   DatasetOptions dataset_options;
+  dataset_options.intrinsics_name = "--intrinsics";
   if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsics(intrinsics_spec);
   if (!poses.empty()) dataset_options.poses = poses;
   const Dataset dataset = OpenDataset(dataset_spec, dataset_options);

@@ -99,6 +99,7 @@ PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
 
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
   DatasetOptions options;
+  options.intrinsics_name = "--intrinsics";
   if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsics(flags.intrinsics);
   return OpenDataset(flags.dataset, options);
 }

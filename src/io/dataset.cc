@@ -4,8 +4,11 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
+#include <stdexcept>
+#include <string_view>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -74,6 +77,115 @@ ImageSize ReadPngSize(const fs::path& path) {
     throw FileError(path.string(), 0, "a positive PNG image size", fmt::format("{}x{}", w, hh));
   }
   return {static_cast<int>(w), static_cast<int>(hh)};
+}
+
+namespace {
+
+// JPEG: markers from SOI until the first start-of-frame (SOF0..SOF15 but DHT C4, JPG C8, DAC
+// CC), whose segment holds precision, height, width.
+std::optional<ImageSize> ReadJpegSize(std::istream& in) {
+  for (;;) {
+    if (in.get() != 0xFF) return std::nullopt;  // not at a marker: corrupt
+    int marker = in.get();
+    while (marker == 0xFF) marker = in.get();  // fill bytes
+    if (marker == EOF) return std::nullopt;
+    if (marker == 0x01 || marker == 0xD8 || (marker >= 0xD0 && marker <= 0xD7)) continue;
+    if (marker == 0xD9 || marker == 0xDA) return std::nullopt;  // no frame header before the scan
+    const int hi = in.get(), lo = in.get();
+    if (lo == EOF || ((hi << 8) | lo) < 2) return std::nullopt;
+    const int length = (hi << 8) | lo;
+    const bool sof =
+        marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+    if (!sof) {
+      in.seekg(length - 2, std::ios::cur);
+      continue;
+    }
+    std::array<unsigned char, 5> f{};
+    if (!in.read(reinterpret_cast<char*>(f.data()), f.size())) return std::nullopt;
+    const int height = (f[1] << 8) | f[2], width = (f[3] << 8) | f[4];
+    if (width == 0 || height == 0) return std::nullopt;  // height 0: defined later (DNL)
+    return ImageSize{width, height};
+  }
+}
+
+// PGM/PPM/PBM ("P1".."P6"): width and height are the first two numbers after the magic, with
+// '#' comments running to the end of their line.
+std::optional<ImageSize> ReadPnmSize(std::istream& in) {
+  int values[2] = {0, 0};
+  for (int& v : values) {
+    int c = in.get();
+    while (c == '#' || std::isspace(c)) {
+      if (c == '#') {
+        while (c != '\n' && c != EOF) c = in.get();
+      }
+      c = in.get();
+    }
+    if (!std::isdigit(c)) return std::nullopt;
+    for (; std::isdigit(c) && v < (1 << 24); c = in.get()) v = 10 * v + (c - '0');
+  }
+  if (values[0] <= 0 || values[1] <= 0) return std::nullopt;
+  return ImageSize{values[0], values[1]};
+}
+
+// BMP: the DIB header after the 14-byte file header; BITMAPCOREHEADER (12 bytes, 16-bit sizes)
+// or a larger one (32-bit signed sizes; a negative height is a top-down bitmap).
+std::optional<ImageSize> ReadBmpSize(std::istream& in) {
+  std::array<unsigned char, 24> h{};  // bytes 2..25 of the file
+  if (!in.read(reinterpret_cast<char*>(h.data()), h.size())) return std::nullopt;
+  auto le = [&h](size_t file_offset, int bytes) {
+    uint32_t v = 0;
+    for (int b = bytes - 1; b >= 0; --b) v = (v << 8) | h[file_offset - 2 + b];
+    return v;
+  };
+  const uint32_t dib = le(14, 4);
+  int64_t width = 0, height = 0;
+  if (dib == 12) {
+    width = le(18, 2), height = le(20, 2);
+  } else if (dib >= 40) {
+    width = static_cast<int32_t>(le(18, 4)), height = static_cast<int32_t>(le(22, 4));
+  }
+  height = std::abs(height);
+  if (width <= 0 || height <= 0 || width > (1 << 30) || height > (1 << 30)) return std::nullopt;
+  return ImageSize{static_cast<int>(width), static_cast<int>(height)};
+}
+
+// A JPEG's data ends with the EOI marker FF D9 (trailing NUL padding allowed); a truncated file
+// does not.
+bool JpegEndsWithEoi(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  const std::streamoff size = in.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 4096);
+  std::string bytes(static_cast<size_t>(std::max<std::streamoff>(tail, 0)), '\0');
+  in.seekg(size - tail);
+  if (!in || !in.read(bytes.data(), tail)) return false;
+  while (!bytes.empty() && bytes.back() == '\0') bytes.pop_back();
+  return bytes.size() >= 2 && static_cast<unsigned char>(bytes[bytes.size() - 2]) == 0xFF &&
+         static_cast<unsigned char>(bytes.back()) == 0xD9;
+}
+
+bool IsJpeg(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return in.get() == 0xFF && in.get() == 0xD8;
+}
+
+}  // namespace
+
+std::optional<ImageSize> ReadImageSize(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  const int m0 = in.get(), m1 = in.get();
+  if (m0 == 0x89 && m1 == 'P') {
+    in.seekg(0);
+    std::array<char, 24> h{};
+    if (!in.read(h.data(), h.size()) || std::string_view(h.data() + 1, 3) != "PNG" ||
+        std::string_view(h.data() + 12, 4) != "IHDR") {
+      return std::nullopt;
+    }
+    return ReadPngSize(path);
+  }
+  if (m0 == 0xFF && m1 == 0xD8) return ReadJpegSize(in);
+  if (m0 == 'P' && m1 >= '1' && m1 <= '6') return ReadPnmSize(in);
+  if (m0 == 'B' && m1 == 'M') return ReadBmpSize(in);
+  return std::nullopt;
 }
 
 CameraIntrinsics TumFreiburgIntrinsics(int freiburg) {
@@ -308,13 +420,12 @@ Dataset OpenKitti(const fs::path& root, const DatasetOptions& options) {
   }
   if (options.intrinsics) {
     d.intrinsics = *options.intrinsics;
+    d.intrinsics_source = options.intrinsics_name;
   } else {
     const fs::path calib = root / "calib.txt";
-    RequireFile(calib, "a KITTI calib.txt (or DatasetOptions::intrinsics)");
+    RequireFile(calib, fmt::format("a KITTI calib.txt (or {})", options.intrinsics_name));
     d.intrinsics = ReadKittiCalibP0(calib);
-    const ImageSize size = ReadPngSize(images.front());
-    d.intrinsics.width = size.width;
-    d.intrinsics.height = size.height;
+    d.intrinsics_source = calib.string();  // width and height: from the first image
   }
   for (size_t i = 0; i < images.size(); ++i) {
     d.frames.push_back(DatasetFrame{static_cast<int64_t>(i), times[i], images[i], std::nullopt});
@@ -366,6 +477,7 @@ Dataset OpenTum(const fs::path& root, const DatasetOptions& options) {
 
   if (options.intrinsics) {
     d.intrinsics = *options.intrinsics;
+    d.intrinsics_source = options.intrinsics_name;
   } else {
     const std::string name = ToLower(root.filename().string());
     int freiburg = 0;
@@ -376,11 +488,14 @@ Dataset OpenTum(const fs::path& root, const DatasetOptions& options) {
         break;
       }
     }
-    SL_CHECK_MSG(freiburg != 0,
-                 "tum:{}: intrinsics are needed (DatasetOptions::intrinsics) because the folder "
-                 "name names none of freiburg1/2/3 (fr1/fr2/fr3)",
-                 root.string());
+    if (freiburg == 0) {
+      throw std::invalid_argument(
+          fmt::format("tum:{}: intrinsics are needed ({}) because the folder name names none of "
+                      "freiburg1/2/3 (fr1/fr2/fr3)",
+                      root.string(), options.intrinsics_name));
+    }
     d.intrinsics = TumFreiburgIntrinsics(freiburg);
+    d.intrinsics_source = fmt::format("the TUM freiburg{} intrinsics", freiburg);
   }
   const fs::path own_gt = root / "groundtruth.txt";
   std::error_code ec;
@@ -589,12 +704,15 @@ Dataset OpenEuroc(const fs::path& root, const DatasetOptions& options) {
   const fs::path yaml = cam / "sensor.yaml";
   if (options.intrinsics) {
     d.intrinsics = *options.intrinsics;
+    d.intrinsics_source = options.intrinsics_name;
     std::error_code ec;
     if (fs::is_regular_file(yaml, ec)) body_from_cam = ReadEurocSensorYaml(yaml).body_from_cam;
   } else {
-    RequireFile(yaml, "an EuRoC mav0/cam0/sensor.yaml (or DatasetOptions::intrinsics)");
+    RequireFile(yaml,
+                fmt::format("an EuRoC mav0/cam0/sensor.yaml (or {})", options.intrinsics_name));
     const EurocCameraInfo info = ReadEurocSensorYaml(yaml);
     d.intrinsics = info.intrinsics;
+    d.intrinsics_source = yaml.string();
     body_from_cam = info.body_from_cam;
   }
   const fs::path own_gt = root / "mav0" / "state_groundtruth_estimate0" / "data.csv";
@@ -626,22 +744,19 @@ Dataset OpenEuroc(const fs::path& root, const DatasetOptions& options) {
 // --------------------------------------------------------------------------------------- images
 
 Dataset OpenImages(const fs::path& root, const DatasetOptions& options) {
-  SL_CHECK_MSG(options.intrinsics.has_value(),
-               "images:{} needs DatasetOptions::intrinsics (an image folder has no calibration)",
-               root.string());
+  if (!options.intrinsics) {
+    throw std::invalid_argument(
+        fmt::format("images:{} needs {} (an image folder has no calibration)", root.string(),
+                    options.intrinsics_name));
+  }
   Dataset d;
   d.kind = "images";
   d.root = root;
   d.intrinsics = *options.intrinsics;
+  d.intrinsics_source = options.intrinsics_name;
   const auto images = ListFiles(root, {".png", ".jpg", ".jpeg", ".pgm", ".bmp"});
   if (images.empty()) {
     throw FileError(root.string(), 0, "at least one image (png, jpg, jpeg, pgm, bmp)", "none");
-  }
-  if ((d.intrinsics.width == 0 || d.intrinsics.height == 0) &&
-      ToLower(images.front().extension().string()) == ".png") {
-    const ImageSize size = ReadPngSize(images.front());
-    d.intrinsics.width = size.width;
-    d.intrinsics.height = size.height;
   }
   for (size_t i = 0; i < images.size(); ++i) {
     d.frames.push_back(
@@ -660,6 +775,57 @@ Dataset OpenImages(const fs::path& root, const DatasetOptions& options) {
   return d;
 }
 
+// The image checks of OpenDataset (dataset.h): sizes from the headers, against the intrinsics'
+// size or the first image's; truncated JPEGs; the principal point inside the image.
+void CheckImages(Dataset& d) {
+  std::optional<ImageSize> reference;
+  std::string reference_source;
+  if (d.intrinsics.width > 0 && d.intrinsics.height > 0) {
+    reference = ImageSize{d.intrinsics.width, d.intrinsics.height};
+    reference_source = d.intrinsics_source;
+  }
+  for (const DatasetFrame& frame : d.frames) {
+    const std::optional<ImageSize> size = ReadImageSize(frame.image_path);
+    if (!size) continue;  // unreadable header: the decoder decides (run skips such frames)
+    const std::string name = frame.image_path.string();
+    const std::string got = fmt::format("{}x{}", size->width, size->height);
+    if (size->width < kMinImageSide || size->height < kMinImageSide) {
+      throw FileError(name, 0,
+                      fmt::format("an image of at least {0}x{0} pixels (ORB needs a 31-pixel "
+                                  "patch and an 8-level pyramid)",
+                                  kMinImageSide),
+                      got);
+    }
+    if (int64_t{size->width} * size->height > kMaxImagePixels) {
+      throw FileError(name, 0, fmt::format("an image of at most {} pixels", kMaxImagePixels), got);
+    }
+    if (!reference) {
+      reference = size;
+      reference_source = name;
+    } else if (size->width != reference->width || size->height != reference->height) {
+      throw FileError(name, 0,
+                      fmt::format("every image of the sequence {}x{} (the size of {})",
+                                  reference->width, reference->height, reference_source),
+                      got);
+    }
+    if (IsJpeg(frame.image_path) && !JpegEndsWithEoi(frame.image_path)) {
+      throw FileError(name, 0, "a complete JPEG file (ending with the EOI marker FF D9)",
+                      "a truncated file");
+    }
+  }
+  if (reference && (d.intrinsics.width == 0 || d.intrinsics.height == 0)) {
+    d.intrinsics.width = reference->width;
+    d.intrinsics.height = reference->height;
+  }
+  const CameraIntrinsics& k = d.intrinsics;
+  if (k.width > 0 && k.height > 0 && !(k.cx > 0 && k.cx < k.width && k.cy > 0 && k.cy < k.height)) {
+    throw std::invalid_argument(fmt::format(
+        "{}: principal point ({}, {}) outside the {}x{} image{}", d.intrinsics_source, k.cx, k.cy,
+        k.width, k.height,
+        reference_source == d.intrinsics_source ? "" : " (the size of " + reference_source + ")"));
+  }
+}
+
 }  // namespace
 
 Dataset OpenDataset(const std::string& spec, const DatasetOptions& options) {
@@ -674,10 +840,12 @@ Dataset OpenDataset(const std::string& spec, const DatasetOptions& options) {
   SL_CHECK_MSG(kind == "kitti" || kind == "tum" || kind == "euroc" || kind == "images",
                "unknown dataset kind '{}' in '{}' (valid: kitti, tum, euroc, images)", kind, spec);
   RequireDirectory(root, "an existing dataset folder");
-  if (kind == "kitti") return OpenKitti(root, options);
-  if (kind == "tum") return OpenTum(root, options);
-  if (kind == "euroc") return OpenEuroc(root, options);
-  return OpenImages(root, options);
+  Dataset d = kind == "kitti"   ? OpenKitti(root, options)
+              : kind == "tum"   ? OpenTum(root, options)
+              : kind == "euroc" ? OpenEuroc(root, options)
+                                : OpenImages(root, options);
+  CheckImages(d);
+  return d;
 }
 
 }  // namespace sparseloop

@@ -40,6 +40,33 @@ TEST(PngSize, ReadsIhdrAndRejectsOtherFiles) {
   EXPECT_FILE_ERROR(ReadPngSize(dir / "c.png"), dir / "c.png", 0);
 }
 
+TEST(ImageSize, PngJpegPnmBmpHeadersAndUnknownFiles) {
+  const auto dir = test::TempDir();
+  test::WritePngHeader(dir / "a.png", 1226, 370);
+  // JPEG: SOI, an APP0 segment to skip, then SOF0 (precision 8, height 48, width 64).
+  test::WriteText(dir / "b.jpg", std::string("\xFF\xD8\xFF\xE0\x00\x04\x00\x00", 8) +
+                                     std::string("\xFF\xC0\x00\x0B\x08\x00\x30\x00\x40", 9));
+  test::WriteText(dir / "c.pgm", "P5\n# a comment\n 320 240\n255\n");
+  std::string bmp = "BM" + std::string(24, '\0');
+  bmp[14] = 40;    // BITMAPINFOHEADER
+  bmp[18] = 0x40;  // width 64
+  bmp[22] = static_cast<char>(0xD0), bmp[23] = bmp[24] = bmp[25] = static_cast<char>(0xFF);  // -48
+  test::WriteText(dir / "d.bmp", bmp);
+  const std::pair<const char*, ImageSize> known[] = {
+      {"a.png", {1226, 370}}, {"b.jpg", {64, 48}}, {"c.pgm", {320, 240}}, {"d.bmp", {64, 48}}};
+  for (const auto& [name, size] : known) {
+    const auto got = ReadImageSize(dir / name);
+    ASSERT_TRUE(got.has_value()) << name;
+    EXPECT_EQ(got->width, size.width) << name;
+    EXPECT_EQ(got->height, size.height) << name;
+  }
+  test::WriteText(dir / "e.jpg", std::string("\xFF\xD8\xFF\xE0\x00", 5));  // cut short
+  test::WriteText(dir / "f.png", "not an image");
+  for (const char* name : {"e.jpg", "f.png", "missing.png"}) {
+    EXPECT_FALSE(ReadImageSize(dir / name).has_value()) << name;
+  }
+}
+
 // --------------------------------------------------------------------------------------- specs
 
 TEST(OpenDataset, BadSpecsAndOptions) {

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "io/io_test_util.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
@@ -249,6 +250,127 @@ TEST_F(BadSequence, PoseFileShorterThanImageList) {
   } catch (const FileError& e) {
     EXPECT_NE(std::string(e.what()).find("short.txt"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("6 images"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------------------- images of a dataset
+
+// Images that ORB cannot use, or that would make the decoder abort, are refused by name when the
+// dataset is opened, before any frame is processed (OpenDataset, dataset.h).
+class BadImages : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = test::TempDir() / "images";
+    std::filesystem::create_directories(dir_);
+    options_.intrinsics_name = "--intrinsics";
+    CameraIntrinsics k;
+    k.fx = k.fy = 50;
+    k.cx = 32;
+    k.cy = 24;
+    options_.intrinsics = k;
+  }
+  std::filesystem::path Write(const std::string& name, const cv::Mat& image) {
+    const auto path = dir_ / name;
+    EXPECT_TRUE(cv::imwrite(path.string(), image));
+    return path;
+  }
+  // Expects OpenDataset to throw a FileError naming `file` whose message contains `message`.
+  void ExpectRefused(const std::filesystem::path& file, const std::string& message) {
+    try {
+      OpenDataset("images:" + dir_.string(), options_);
+      ADD_FAILURE() << "accepted; expected: " << message;
+    } catch (const FileError& e) {
+      EXPECT_EQ(e.file(), file.string()) << e.what();
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  }
+  static cv::Mat Textured(int width, int height) {
+    cv::Mat image;
+    cv::resize(TexturedImage(7), image, cv::Size(width, height));
+    return image;
+  }
+  std::filesystem::path dir_;
+  DatasetOptions options_;
+};
+
+TEST_F(BadImages, TinyImageIsRefusedNamingTheFile) {
+  Write("0.png", Textured(64, 48));
+  const auto tiny = Write("1.png", cv::Mat(1, 1, CV_8UC1, cv::Scalar(9)));
+  ExpectRefused(tiny, "at least 32x32 pixels");
+  std::filesystem::remove(tiny);
+  EXPECT_EQ(OpenDataset("images:" + dir_.string(), options_).frames.size(), 1u);
+}
+
+TEST_F(BadImages, HugePngHeaderIsRefusedBeforeDecoding) {
+  Write("0.png", Textured(64, 48));
+  const auto huge = dir_ / "1.png";
+  test::WritePngHeader(huge, 100000, 100000);
+  ExpectRefused(huge, "got 100000x100000");
+}
+
+TEST_F(BadImages, MixedSizesAreRefusedNamingTheFileAndTheSizeExpected) {
+  const auto first = Write("0.png", Textured(64, 48));
+  Write("1.jpg", Textured(64, 48));
+  const auto other = Write("2.pgm", Textured(80, 60));
+  ExpectRefused(other, "64x48 (the size of " + first.string() + "), got 80x60");
+  // Against the intrinsics' own size when they have one.
+  options_.intrinsics->width = 80;
+  options_.intrinsics->height = 60;
+  ExpectRefused(first, "80x60 (the size of --intrinsics), got 64x48");
+}
+
+TEST_F(BadImages, SizeComesFromTheFirstImageOfAnyFormat) {
+  Write("0.jpg", Textured(64, 48));
+  Write("1.bmp", Textured(64, 48));
+  const Dataset d = OpenDataset("images:" + dir_.string(), options_);
+  EXPECT_EQ(d.intrinsics.width, 64);
+  EXPECT_EQ(d.intrinsics.height, 48);
+  EXPECT_EQ(d.intrinsics_source, "--intrinsics");
+}
+
+TEST_F(BadImages, PrincipalPointOutsideTheImageNamesTheIntrinsics) {
+  Write("0.png", Textured(64, 48));
+  options_.intrinsics->cx = 500;
+  try {
+    OpenDataset("images:" + dir_.string(), options_);
+    ADD_FAILURE() << "accepted a principal point outside the image";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--intrinsics: principal point (500, 24) outside the "
+                                         "64x48 image (the size of " +
+                                         (dir_ / "0.png").string() + ")"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST_F(BadImages, TruncatedJpegIsRefusedNamingTheFile) {
+  std::vector<uchar> bytes;
+  ASSERT_TRUE(cv::imencode(".jpg", Textured(640, 480), bytes));
+  ASSERT_EQ(bytes[bytes.size() - 2], 0xFF);
+  ASSERT_EQ(bytes.back(), 0xD9);
+  options_.intrinsics->cx = 320;
+  options_.intrinsics->cy = 240;
+  std::ofstream(dir_ / "0.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  // Trailing NUL padding after the EOI marker is allowed.
+  std::ofstream(dir_ / "1.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size())
+      .write("\0\0\0", 3);
+  EXPECT_EQ(OpenDataset("images:" + dir_.string(), options_).frames.size(), 2u);
+  std::ofstream(dir_ / "2.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size() / 2);
+  ExpectRefused(dir_ / "2.jpg", "a truncated file");
+}
+
+// The same checks hold for every kind of dataset: a 1x1 image inside a KITTI sequence.
+TEST_F(BadSequence, TinyImageInAKittiSequenceIsRefusedNamingIt) {
+  const auto tiny = dir_ / "image_0" / "000003.png";
+  ASSERT_TRUE(cv::imwrite(tiny.string(), cv::Mat(1, 1, CV_8UC1, cv::Scalar(0))));
+  try {
+    OpenDataset("kitti:" + dir_.string());
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), tiny.string()) << e.what();
   }
 }
 

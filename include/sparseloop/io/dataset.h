@@ -8,6 +8,20 @@
 //   "images:DIR"  sorted *.png/jpg/jpeg/pgm/bmp; intrinsics from options, poses optional
 // A bad spec or a missing required option throws std::invalid_argument; a missing or malformed
 // file throws FileError.
+//
+// Opening also reads the header of every frame's image (PNG, JPEG, PGM/PPM, BMP; no decoding), so
+// that a bad image is reported by name before any frame is processed (docs/FORMATS.md):
+//  - an image smaller than kMinImageSide pixels a side, or larger than kMaxImagePixels: FileError
+//    naming the image;
+//  - an image whose size differs from the intrinsics' width x height, or, when those are unknown,
+//    from the first image's: FileError naming the image and the size expected (unknown width and
+//    height are then filled in from the first image);
+//  - a JPEG that does not end with the EOI marker FF D9 (a truncated file, which decoders return
+//    half-decoded): FileError naming the image;
+//  - a principal point outside the image: std::invalid_argument naming where the intrinsics came
+//    from (DatasetOptions::intrinsics_name, a calibration file, ...).
+// An image whose header cannot be read (missing, corrupt, other format) is left to the decoder:
+// `RunPipeline` skips it (skip_unreadable_frames).
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -31,6 +45,9 @@ struct Dataset {
   std::string kind;  // "kitti", "tum", "euroc" or "images"
   std::filesystem::path root;
   CameraIntrinsics intrinsics;
+  // Where `intrinsics` came from, for messages: DatasetOptions::intrinsics_name, a calibration file
+  // (KITTI calib.txt, EuRoC sensor.yaml) or "the TUM freiburgN intrinsics".
+  std::string intrinsics_source;
   std::vector<DatasetFrame> frames;
   std::filesystem::path gt_path;  // the file the ground truth came from (empty when none)
 
@@ -44,6 +61,8 @@ struct DatasetOptions {
   // Overrides the intrinsics from the dataset (required for "images:", and for "tum:" when the
   // folder name does not name freiburg1/2/3).
   std::optional<CameraIntrinsics> intrinsics;
+  // How messages name `intrinsics`: a program sets what its user typed (the CLI: "--intrinsics").
+  std::string intrinsics_name = "DatasetOptions::intrinsics";
   // Ground-truth trajectory file (any ReadTrajectory format, auto-detected); overrides the
   // dataset's own GT. kitti/images: matched by frame index; tum/euroc: by nearest timestamp.
   std::filesystem::path poses;
@@ -66,6 +85,17 @@ struct ImageSize {
   int height = 0;  // pixels
 };
 ImageSize ReadPngSize(const std::filesystem::path& path);
+
+// Width and height from the header of a PNG, JPEG (first SOF marker), PGM/PPM/PBM or BMP file, no
+// decoding. nullopt when the file cannot be opened or its header is none of these, or is cut
+// short (the decoder decides what to do with it); FileError for a PNG header of zero size.
+std::optional<ImageSize> ReadImageSize(const std::filesystem::path& path);
+
+// Images OpenDataset accepts: at least kMinImageSide pixels a side (ORB's 31-pixel patch, and an
+// 8-level pyramid that must not shrink to nothing), at most kMaxImagePixels pixels (16384^2; 256
+// MiB of 8-bit gray, below OpenCV's own CV_IO_MAX_IMAGE_PIXELS).
+inline constexpr int kMinImageSide = 32;
+inline constexpr int64_t kMaxImagePixels = int64_t{1} << 28;
 
 // The intrinsics of the TUM RGB-D Kinects (640x480), from the dataset's documentation:
 // 1 -> freiburg1, 2 -> freiburg2 (both radtan k1 k2 p1 p2 k3), 3 -> freiburg3 (no distortion).
