@@ -27,6 +27,28 @@ inline void Parse(CLI::App& app, int argc, char** argv) {
   }
 }
 
+// An integer option of at least `min`. CLI11's PositiveNumber / NonNegativeNumber say "Value 0
+// not in range 0.000000 to <300 digits>"; this says "must be an integer >= 1, got '0'".
+inline CLI::Validator IntegerAtLeast(long long min) {
+  return CLI::Validator(
+      [min](std::string& text) -> std::string {
+        long long value = 0;
+        size_t used = 0;
+        try {
+          value = std::stoll(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size() || value < min) {
+          return "must be an integer >= " + std::to_string(min) + ", got '" + text + "'";
+        }
+        return {};
+      },
+      min == 1   ? "POSITIVE"
+      : min == 0 ? "NON-NEGATIVE"
+                 : ">=" + std::to_string(min));
+}
+
 // Runs `check` and turns a FileError into std::invalid_argument (exit 2) that starts with the
 // flag the user typed: "--json out.fifo: expected a regular file ..., got a FIFO (named pipe)".
 template <typename Check>

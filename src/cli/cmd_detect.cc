@@ -18,6 +18,7 @@
 
 #include "cli/cli_util.h"
 #include "cli/command.h"
+#include "cli/run_output.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
@@ -78,8 +79,7 @@ int RunDetect(int argc, char** argv) {
       ->required();
   app.add_option("--poses", poses, "raw vSLAM poses (any trajectory format), one per frame");
   app.add_option("--intrinsics", intrinsics_spec, "fx,fy,cx,cy (overrides the dataset's)");
-  app.add_option("-K,--features", k, "informative features kept per keyframe (K)");
-  app.add_option("--search", search_name, "search area: paper | radius | global");
+  AddFeaturesAndSearchFlags(app, &k, &search_name);
   app.add_option("--config", config_path, "JSON options ({\"detector\": {...}})");
   app.add_option("--out", out_dir, "output directory")->required();
   app.add_option("--map", map_path,

@@ -30,8 +30,11 @@ int RunOptimize(int argc, char** argv) {
   app.add_option("--loss-scale", options.loss_scale,
                  "where the robust loss bends, in whitened residual units (default 1)");
   app.add_option("--max-iterations", options.max_iterations, "Levenberg-Marquardt iterations")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--threads", options.num_threads, "Ceres threads")->check(CLI::PositiveNumber);
+      ->check(IntegerAtLeast(1))
+      ->capture_default_str();
+  app.add_option("--threads", options.num_threads, "Ceres threads")
+      ->check(IntegerAtLeast(1))
+      ->capture_default_str();
   Parse(app, argc, argv);
   CheckOutputFileFlag("--out", out);
 

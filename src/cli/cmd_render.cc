@@ -52,14 +52,21 @@ int RunRender(int argc, char** argv) {
   app.add_option("--textures", textures_dir, "texture folder (default: procedural textures)");
   app.add_option("--texture-filter", texture_filter,
                  "comma-separated substrings; only matching texture file names are used");
-  app.add_option("--frames", frames, "frames to render (0: all poses / the plan's default)");
+  app.add_option("--frames", frames, "frames to render (0: all poses / the plan's default)")
+      ->check(IntegerAtLeast(0))
+      ->capture_default_str();
   app.add_option("--start", start,
                  "first pose of --trajectory to render (the world is still "
                  "built from the whole trajectory)")
+      ->check(IntegerAtLeast(0))
       ->capture_default_str();
-  app.add_option("--step", step, "render every step-th pose")->capture_default_str();
+  app.add_option("--step", step, "render every step-th pose")
+      ->check(IntegerAtLeast(1))
+      ->capture_default_str();
   app.add_option("--seed", seed, "seed of the world, noise and drift")->capture_default_str();
-  app.add_option("--threads", threads, "frames rendered in parallel")->capture_default_str();
+  app.add_option("--threads", threads, "frames rendered in parallel")
+      ->check(IntegerAtLeast(1))
+      ->capture_default_str();
   app.add_option("--altitude", plan.altitude, "aerial: metres above ground")->capture_default_str();
   app.add_option("--tilt", plan.tilt_deg, "aerial: camera tilt from nadir, degrees")
       ->capture_default_str();

@@ -14,7 +14,6 @@
 #include "cli/cli_util.h"
 #include "cli/command.h"
 #include "cli/run_output.h"
-#include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/eval/json.h"
 #include "sparseloop/io/atomic_file.h"
@@ -55,7 +54,6 @@ int RunRun(int argc, char** argv) {
   options.Check();
 
   const Dataset dataset = OpenDatasetFromFlags(flags);
-  SL_CHECK_MSG(!flags.poses.empty(), "--poses RAW is required");
   const Trajectory raw_file = ReadTrajectory(flags.poses);
   const Trajectory raw =
       MatchRawPosesToFrames(dataset, raw_file, options.raw_association_max_dt, flags.poses);

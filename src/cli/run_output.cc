@@ -9,8 +9,10 @@
 #include <map>
 #include <sstream>
 
+#include "cli/cli_util.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/search/search_area.h"
 
 namespace sparseloop::cli {
@@ -70,14 +72,24 @@ std::string Fmt(const std::optional<double>& v, int precision = 3) {
 
 }  // namespace
 
+void AddFeaturesAndSearchFlags(CLI::App& app, std::optional<int>* k, std::string* search) {
+  const LoopDetector::Options defaults;
+  app.add_option("-K,--features", *k, "Informative features kept per keyframe (overrides --config)")
+      ->check(IntegerAtLeast(1))
+      ->default_str(std::to_string(defaults.features.max_features));
+  app.add_option("--search", *search,
+                 "Search area: paper | radius | global (overrides --config; global without poses)")
+      ->check(CLI::IsMember({"paper", "radius", "global"}))
+      ->default_str(ToString(defaults.search.strategy));
+}
+
 void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
   app.add_option("--dataset", f->dataset, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
       ->required();
-  app.add_option("--poses", f->poses, "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file)");
+  app.add_option("--poses", f->poses, "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file)")
+      ->required();
   app.add_option("--intrinsics", f->intrinsics, "fx,fy,cx,cy (required for images:DIR)");
-  app.add_option("-K", f->k, "Informative features kept per keyframe");
-  app.add_option("--search", f->search, "Search area: paper | radius | global")
-      ->check(CLI::IsMember({"paper", "radius", "global"}));
+  AddFeaturesAndSearchFlags(app, &f->k, &f->search);
   app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
   app.add_option("--out", f->out, "Output directory")->required();
   app.add_flag("--quiet", f->quiet, "No progress line");
@@ -86,8 +98,7 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
-  if (flags.k > 0) options.detector.features.max_features = flags.k;
-  SL_CHECK_MSG(flags.k == -1 || flags.k > 0, "-K must be positive, got {}", flags.k);
+  if (flags.k) options.detector.features.max_features = *flags.k;
   if (!flags.search.empty()) options.detector.search.strategy = ParseSearchStrategy(flags.search);
   if (flags.poses.empty() && options.detector.search.strategy != SearchStrategy::kGlobal) {
     // Without poses only the global search is defined.

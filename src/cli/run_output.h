@@ -4,6 +4,7 @@
 // library.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -23,7 +24,7 @@ struct DetectorFlags {
   std::string dataset;     // kitti:DIR | tum:DIR | euroc:DIR | images:DIR
   std::string poses;       // raw vSLAM poses
   std::string intrinsics;  // fx,fy,cx,cy
-  int k = -1;              // -K override (-1: config / default)
+  std::optional<int> k;    // -K override (none: config / default)
   std::string search;      // paper | radius | global (empty: config / default)
   std::string config;      // JSON configuration file
   std::string out;         // output directory
@@ -31,6 +32,8 @@ struct DetectorFlags {
 };
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* flags);
+// -K,--features and --search, shared by `detect` and `run`: help shows the detector's defaults.
+void AddFeaturesAndSearchFlags(CLI::App& app, std::optional<int>* k, std::string* search);
 // Defaults, then --config, then the explicit flags (-K, --search).
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags);

@@ -147,6 +147,15 @@ void CheckColumnCount(size_t got, size_t expected, const std::string& file, int 
   }
 }
 
+// The "got" of a non-increasing timestamp / frame index; a repeated one names the option that
+// reads such files (e.g. the TUM fr2/desk ground truth).
+std::string NotIncreasing(const std::string& value, bool repeated) {
+  if (!repeated) return value;
+  return value +
+         " (a repeat: to keep the first pose of each, convert the file with `sparseloop convert "
+         "--drop-duplicates` or set TrajectoryReadOptions::drop_duplicate_timestamps)";
+}
+
 void WarnDropped(const TextFile& file, size_t dropped) {
   if (dropped > 0) {
     Logger().warn("{}: dropped {} pose(s) repeating the previous timestamp / frame index",
@@ -181,7 +190,8 @@ Trajectory ReadTum(const TextFile& file, const TrajectoryReadOptions& options) {
       throw FileError(name, line.number,
                       fmt::format("a timestamp greater than the previous one ({:.9f})",
                                   traj.poses.back().timestamp),
-                      fmt::format("{:.9f}", pose.timestamp));
+                      NotIncreasing(fmt::format("{:.9f}", pose.timestamp),
+                                    pose.timestamp == traj.poses.back().timestamp));
     }
     pose.world_from_cam = Rigid3d(CheckedQuaternion(q, name, line.number), p);
     pose.frame = frame++;
@@ -230,7 +240,7 @@ Trajectory ReadKitti(const TextFile& file, const TrajectoryReadOptions& options)
       throw FileError(
           name, line.number,
           fmt::format("a frame index greater than the previous one ({})", traj.poses.back().frame),
-          fmt::format("{}", pose.frame));
+          NotIncreasing(fmt::format("{}", pose.frame), pose.frame == traj.poses.back().frame));
     }
     pose.world_from_cam = CheckedPose(m, name, line.number);
     pose.timestamp = static_cast<double>(pose.frame);
@@ -277,7 +287,7 @@ Trajectory ReadEuroc(const TextFile& file, const TrajectoryReadOptions& options)
     if (!traj.poses.empty() && ns <= previous_ns) {
       throw FileError(name, line.number,
                       fmt::format("a timestamp greater than the previous one ({} ns)", previous_ns),
-                      fmt::format("{} ns", ns));
+                      NotIncreasing(fmt::format("{} ns", ns), ns == previous_ns));
     }
     previous_ns = ns;
     StampedPose pose;
@@ -324,7 +334,7 @@ Trajectory ReadPositions(const TextFile& file, const TrajectoryReadOptions& opti
       throw FileError(
           name, line.number,
           fmt::format("a frame index greater than the previous one ({})", traj.poses.back().frame),
-          fmt::format("{}", pose.frame));
+          NotIncreasing(fmt::format("{}", pose.frame), pose.frame == traj.poses.back().frame));
     }
     pose.timestamp = static_cast<double>(pose.frame);
     traj.poses.push_back(pose);

@@ -60,5 +60,56 @@ TEST(Cli, VersionPrintsProjectVersionAndGitCommit) {
   EXPECT_NE(RunCli({"--help"}).out.find("sparseloop --version"), std::string::npos);
 }
 
+// The line of `help` that documents `option`.
+std::string HelpLine(const std::string& help, const std::string& option) {
+  std::istringstream lines(help);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.find(option) != std::string::npos) return line;
+  }
+  return {};
+}
+
+// `run --help` marks --poses as required; -K and --search show the detector's defaults.
+TEST(Cli, HelpShowsRequiredPosesAndDefaults) {
+  const std::string run = RunCli({"run", "--help"}).out;
+  EXPECT_NE(HelpLine(run, "--poses").find("REQUIRED"), std::string::npos) << run;
+  for (const std::string& help : {run, RunCli({"detect", "--help"}).out}) {
+    EXPECT_NE(HelpLine(help, "-K,--features").find("=300"), std::string::npos) << help;
+    EXPECT_NE(HelpLine(help, "--search").find("=paper"), std::string::npos) << help;
+  }
+  const CliResult no_poses = RunCli({"run", "--dataset", "images:/x", "--out", "/tmp/x"});
+  EXPECT_EQ(no_poses.exit_code, 2);
+  EXPECT_NE(no_poses.err.find("--poses is required"), std::string::npos) << no_poses.err;
+}
+
+// Integer options out of range: a short message naming the flag, not a 300-digit range; a
+// negative --frames is an error, not the default.
+TEST(Cli, IntegerOptionsOutOfRangeGiveAShortError) {
+  const auto dir = TempDir();
+  const struct {
+    std::vector<std::string> args;
+    std::string message;
+  } cases[] = {
+      {{"optimize", "--g2o", "in.g2o", "--out", (dir / "o.g2o").string(), "--max-iterations", "0"},
+       "--max-iterations: must be an integer >= 1, got '0'"},
+      {{"optimize", "--g2o", "in.g2o", "--out", (dir / "o.g2o").string(), "--threads", "x"},
+       "--threads: must be an integer >= 1, got 'x'"},
+      {{"render", "--world", "aerial", "--frames", "-5", "--out", (dir / "r").string()},
+       "--frames: must be an integer >= 0, got '-5'"},
+      {{"render", "--world", "aerial", "--step", "0", "--out", (dir / "r").string()},
+       "--step: must be an integer >= 1, got '0'"},
+      {{"detect", "--dataset", "images:/x", "-K", "0", "--out", (dir / "d").string()},
+       "must be an integer >= 1, got '0'"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.args[0] + " " + c.message);
+    const CliResult r = RunCli(c.args);
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << r.err;
+    EXPECT_LT(r.err.size(), 200u) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "r"));  // nothing rendered
+}
+
 }  // namespace
 }  // namespace sparseloop::test

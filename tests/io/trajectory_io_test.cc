@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "io/io_test_util.h"
@@ -434,6 +435,37 @@ TEST(TrajectoryRealData, TumFr2DeskGroundTruthRepeatsATimestamp) {
   });
   ASSERT_NE(it, traj.poses.end());
   EXPECT_TRUE(it->world_from_cam.translation.isApprox(Eigen::Vector3d(1.4054, 0.9615, 1.3677)));
+}
+
+// The strict reader's error on a repeated timestamp / frame index names the option that reads
+// such files; a decreasing one does not (dropping repeats would not help).
+TEST(TrajectoryRead, RepeatedTimestampErrorNamesDropDuplicates) {
+  const auto dir = test::TempDir();
+  const std::pair<std::string, F> repeats[] = {
+      {"1 0 0 0 0 0 0 1\n1 5 0 0 0 0 0 1\n", F::kTum},
+      {"5,0,0,0,1,0,0,0\n5,1,0,0,1,0,0,0\n", F::kEuroc},
+      {"4 1 0 0 0 0 1 0 0 0 0 1 0\n4 1 0 0 1 0 1 0 0 0 0 1 0\n", F::kKitti},
+  };
+  int k = 0;
+  for (const auto& [text, format] : repeats) {
+    const auto path = test::WriteText(dir / fmt::format("r{}.txt", k++), text);
+    try {
+      ReadTrajectory(path, format);
+      ADD_FAILURE() << "accepted a repeat: " << text;
+    } catch (const FileError& e) {
+      EXPECT_EQ(e.line(), 2);
+      EXPECT_NE(std::string(e.what()).find("sparseloop convert --drop-duplicates"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  const auto decreasing = test::WriteText(dir / "d.txt", "2 0 0 0 0 0 0 1\n1 5 0 0 0 0 0 1\n");
+  try {
+    ReadTrajectory(decreasing, F::kTum);
+    ADD_FAILURE() << "accepted a decreasing timestamp";
+  } catch (const FileError& e) {
+    EXPECT_EQ(std::string(e.what()).find("--drop-duplicates"), std::string::npos) << e.what();
+  }
 }
 
 TEST(TrajectoryRead, DropDuplicatesOptionKeepsFirstAndStillRejectsDecreasing) {
