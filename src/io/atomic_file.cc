@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -50,6 +51,16 @@ std::string DirectoryProblem(const fs::path& dir) {
   return {};
 }
 
+// /dev/stdout, /dev/fd/N, /proc/self/fd/N: links to a process's open files. Renaming over their
+// target would replace the file behind the descriptor (or fail for a pipe), so they are refused.
+bool InProcFileSystem(const fs::path& path) {
+  std::error_code ec;
+  const fs::path dir =
+      fs::weakly_canonical(path.has_parent_path() ? path.parent_path() : fs::path("."), ec);
+  const auto first = dir.begin() == dir.end() ? dir.end() : std::next(dir.begin());
+  return !ec && first != dir.end() && *first == "proc";
+}
+
 }  // namespace
 
 fs::path CheckOutputFile(const fs::path& path) {
@@ -62,6 +73,10 @@ fs::path CheckOutputFile(const fs::path& path) {
   std::error_code ec;
   for (int hops = 0; fs::is_symlink(fs::symlink_status(target, ec)); ++hops) {
     if (hops == 40) throw FileError(name, 0, "a symbolic link that ends", "a loop of links");
+    if (InProcFileSystem(target)) {
+      throw FileError(name, 0, "a regular file or a new file name",
+                      "a link to an open file descriptor (" + target.string() + ")");
+    }
     const fs::path link = fs::read_symlink(target, ec);
     if (ec) throw FileError(name, 0, "a readable symbolic link", ec.message());
     target = (link.is_absolute() ? link : target.parent_path() / link).lexically_normal();

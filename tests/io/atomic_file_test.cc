@@ -127,6 +127,18 @@ TEST(AtomicFile, SymlinkIsWrittenThroughToItsTarget) {
   ExpectRefused(dir / "to_pipe", "FIFO");
   EXPECT_TRUE(std::filesystem::is_fifo(dir / "real" / "pipe"));
 
+  // Links to a process's open files are refused: renaming over their target would replace the
+  // file behind the descriptor (the shell's redirection target) or fail for a pipe.
+  for (const char* path : {"/dev/stdout", "/dev/fd/1", "/proc/self/fd/2"}) {
+    if (!std::filesystem::is_symlink(std::filesystem::symlink_status(path))) continue;
+    try {
+      CheckOutputFile(path);
+      ADD_FAILURE() << "accepted " << path;
+    } catch (const FileError& e) {
+      EXPECT_NE(std::string(e.what()).find("open file descriptor"), std::string::npos) << e.what();
+    }
+  }
+
   // A loop of links is an error, not a hang.
   std::filesystem::create_symlink("loop_b", dir / "loop_a");
   std::filesystem::create_symlink("loop_a", dir / "loop_b");

@@ -12,7 +12,8 @@ namespace sparseloop {
 // returns the file it will replace: `path` itself, or, when `path` is a symbolic link (a chain of
 // links is followed), the link's final target (the link itself is never replaced). Throws
 // FileError(path, 0, ...) when the path (or the target) is a directory, FIFO, socket, character or
-// block device, when its directory is missing or not writable, or when the links form a loop.
+// block device, when it is a link to an open file descriptor (/dev/stdout, /dev/fd/N,
+// /proc/self/fd/N), when its directory is missing or not writable, or when the links form a loop.
 std::filesystem::path CheckOutputFile(const std::filesystem::path& path);
 
 // Checks, without creating anything, that `dir` can hold output files: an existing writable
