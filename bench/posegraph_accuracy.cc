@@ -45,15 +45,19 @@ std::string DriftCaseJson(const test::DriftCase& c, uint64_t seed) {
   PoseGraphOptions plain;
   plain.rejection = OutlierRejection::kNone;
   const double raw_ate = test::AlignedAte(c.raw, c.gt);
-  const auto r_clean = test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{});
-  const auto r_dirty = test::CorrectAndScore(c.raw, c.gt, dirty.loops, PoseGraphOptions{});
-  const auto r_plain = test::CorrectAndScore(c.raw, c.gt, dirty.loops, plain);
+  const auto r_clean =
+      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry);
+  const auto r_dirty =
+      test::CorrectAndScore(c.raw, c.gt, dirty.loops, PoseGraphOptions{}, c.odometry);
+  const auto r_plain = test::CorrectAndScore(c.raw, c.gt, dirty.loops, plain, c.odometry);
   // The same true loops on the metric vertex types (issue #4: SE(3) for metric input, 4-DoF for
   // gravity-aligned VIO): the EuRoC VIO is metric, but its scale is off by a few per cent.
   const auto r_se3 =
-      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, {}, VertexType::kSe3);
+      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
+                            VertexType::kSe3);
   const auto r_4dof =
-      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, {}, VertexType::kFourDof);
+      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
+                            VertexType::kFourDof);
   std::vector<bool> rejected(dirty.loops.size(), false);
   for (size_t k : r_dirty.summary.rejected_loops) rejected[k] = true;
   size_t num_false = 0, accepted_true = 0, accepted_false = 0;

@@ -55,6 +55,7 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
                "min_path_ratio must be >= 0, got {}", min_path_ratio);
   SL_CHECK_MSG(consistency_base_deg >= 0 && consistency_per_keyframe_deg >= 0 &&
+                   two_view_consistency_per_keyframe_deg >= 0 &&
                    consistency_max_deg >= consistency_base_deg,
                "consistency tolerances must be >= 0 and max >= base (got {}, {}, {})",
                consistency_base_deg, consistency_per_keyframe_deg, consistency_max_deg);
@@ -439,6 +440,61 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   result->timings.verify_ms += stage.ElapsedMs();
 }
 
+namespace {
+
+// PnP of the query against the match's local map fixes the query camera in match units; the
+// query's own triangulated depths (query units) of the same inliers then give the relative scale
+// directly: s = z(query_from_match * P) / z_query per inlier, robustly the median. A 3-point
+// Sim(3) RANSAC between two noisy triangulated clouds rarely passes the 2 px check in both
+// cameras (castle 29 -> 02 falls back to PnP), while this needs no 3D-3D hypothesis. The loop
+// becomes kSim3 with the scale's information n / var(log s_i) added to the PnP information.
+// Needs kMinScalePairs inliers with a query depth.
+constexpr int kMinScalePairs = 8;
+
+}  // namespace
+
+void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeRecord& map,
+                                 const std::vector<DescriptorMatch>& matches,
+                                 VerificationResult* v) const {
+  const Sim3d query_from_match = v->match_from_query.Inverse();
+  std::vector<double> log_ratio;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observed;
+  for (int i : v->inlier_matches) {
+    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
+    const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
+    const CompactKeypoint& kq = query.keypoints[static_cast<size_t>(m.query)];
+    points.push_back(double(map.depths[static_cast<size_t>(m.train)]) *
+                     Eigen::Vector3d(k.x, k.y, 1.0));
+    observed.emplace_back(kq.x, kq.y);
+  }
+  for (int i : v->inlier_matches) {
+    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
+    const float zq = query.depths[static_cast<size_t>(m.query)];
+    const float zm = map.depths[static_cast<size_t>(m.train)];
+    if (zq <= 0 || zm <= 0) continue;
+    const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
+    const double z = (query_from_match * (double(zm) * Eigen::Vector3d(k.x, k.y, 1.0))).z();
+    if (z > 0) log_ratio.push_back(std::log(z / zq));
+  }
+  if (static_cast<int>(log_ratio.size()) < kMinScalePairs) return;
+  std::vector<double> sorted = log_ratio;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  // Robust spread: 1.4826 x the median absolute deviation, floored (a few identical ratios).
+  std::vector<double> dev;
+  for (double r : log_ratio) dev.push_back(std::abs(r - median));
+  std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
+  const double sigma = std::max(1.4826 * dev[dev.size() / 2], 1e-3);
+  v->match_from_query.scale = std::exp(median);
+  // The PnP information again at the scaled pose (its translation columns scale with s).
+  const float focal = std::max(1.0f, 0.5f * (query.focal_px + map.focal_px));
+  v->information = PnpInformationPointsInMatch(points, observed, v->match_from_query,
+                                               verify_.InformationOptions(focal));
+  v->information(6, 6) += static_cast<double>(log_ratio.size()) / (sigma * sigma);
+  v->pose_kind = RelativePoseKind::kSim3;
+}
+
 VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
                                                        size_t match_index, int* map_points) const {
   const Options::LocalMapOptions& lm = options_.local_map;
@@ -525,9 +581,20 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     if (tri.triangulated > 0) q.depths = tri.depths;
   }
   VerificationResult v = VerifyPair(q, map, matches, verify_);
+  if (v.pose_kind == RelativePoseKind::kSE3Metric && q.has_depths())
+    AddQueryScale(q, map, matches, &v);
   return v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3
              ? v
              : none;
+}
+
+size_t LoopDetector::OdometryPathKeyframes(size_t a, size_t b) const {
+  auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
+  size_t best = dist(a, b);
+  for (const auto& [q, m] : accepted_loops_) {
+    best = std::min(best, std::min(dist(a, q) + dist(m, b), dist(a, m) + dist(q, b)));
+  }
+  return best;
 }
 
 std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
@@ -588,12 +655,6 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   // 5. Geometric verification of the best few, then the pose-prior consistency check.
   stage.Restart();
   const size_t query_index = index_of_.at(query.id);
-  const int64_t since_loop =
-      static_cast<int64_t>(query_index) - static_cast<int64_t>(last_loop_index_);
-  const double tolerance_deg =
-      std::min(options_.consistency_max_deg,
-               options_.consistency_base_deg +
-                   options_.consistency_per_keyframe_deg * static_cast<double>(since_loop));
   LoopStatus status = LoopStatus::kTooFewInliers;
   bool have_best = false;
   const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
@@ -611,6 +672,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
         v.method = m.method;
         v.pose_kind = m.pose_kind;
         v.match_from_query = m.match_from_query;
+        v.information = m.information;
       }
     }
     LoopResult trial = *result;
@@ -623,7 +685,20 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     trial.method = v.method;
     trial.pose_kind = v.pose_kind;
     trial.match_from_query = v.match_from_query;
+    trial.information = v.information;
     LoopStatus trial_status = LoopStatus::kTooFewInliers;
+    // A pose from 3D points (PnP / Sim(3) against the local map or depths) has no two-view
+    // ambiguity: the gate may be as wide as the odometry between the two places allows. A
+    // two-view pose can be the wrong one of two supported solutions (castle 29 -> 02: 27 deg
+    // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
+    const bool from_3d = v.pose_kind == RelativePoseKind::kSE3Metric ||
+                         v.pose_kind == RelativePoseKind::kSim3;
+    const double tolerance_deg = std::min(
+        options_.consistency_max_deg,
+        options_.consistency_base_deg +
+            (from_3d ? options_.consistency_per_keyframe_deg
+                     : options_.two_view_consistency_per_keyframe_deg) *
+                static_cast<double>(OdometryPathKeyframes(query_index, match_index)));
     if (v.success) {
       trial_status = LoopStatus::kDetected;
       if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {
@@ -644,6 +719,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
               trial.inliers = alt.inliers;
               trial.score = static_cast<double>(alt.inliers) / options_.features.max_features;
               trial.match_from_query = alt.match_from_query;
+              trial.information = alt.information;
               trial.planar_alternative = true;
               trial_status = LoopStatus::kDetected;
               break;
@@ -680,7 +756,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   result->status = status;
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {
-    last_loop_index_ = static_cast<int64_t>(query_index);
+    accepted_loops_.emplace_back(query_index, index_of_.at(result->match_id));
     search_.OnLoopAccepted(query.id, result->match_id);
   }
 }

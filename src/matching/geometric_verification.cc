@@ -49,6 +49,9 @@ void VerifyOptions::Check() const {
   SL_CHECK_MSG(local_optimization_rounds >= 0 && local_optimization_rounds <= 100,
                "verify.local_optimization_rounds must be in [0, 100], got {}",
                local_optimization_rounds);
+  SL_CHECK_MSG(std::isfinite(information_min_sigma_px) && information_min_sigma_px > 0,
+               "verify.information_min_sigma_px must be > 0 pixels, got {}",
+               information_min_sigma_px);
   SL_CHECK_MSG(min_inliers >= 5, "verify.min_inliers must be >= 5, got {}", min_inliers);
   SL_CHECK_MSG(min_inlier_ratio >= 0 && min_inlier_ratio <= 1,
                "verify.min_inlier_ratio must be in [0, 1], got {}", min_inlier_ratio);
@@ -223,6 +226,17 @@ void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
   const Sim3d other_from_with = FromCv(r_cv, tvec);
   result->match_from_query = m_depth ? other_from_with.Inverse() : other_from_with;
   result->pose_kind = RelativePoseKind::kSE3Metric;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observed;
+  for (int k : inliers) {
+    points.emplace_back(object[k].x, object[k].y, object[k].z);
+    observed.emplace_back(image[k].x, image[k].y);
+  }
+  const PoseInformationOptions info_options =
+      options.InformationOptions(options.threshold_px / threshold);
+  result->information =
+      m_depth ? PnpInformationPointsInMatch(points, observed, result->match_from_query, info_options)
+              : PnpInformationPointsInQuery(points, observed, result->match_from_query, info_options);
 }
 
 // The matches of a pair without depths as normalised image points, both as OpenCV points (for
@@ -367,6 +381,13 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
       result.inliers = static_cast<int>(r.inliers.size());
       result.match_from_query = r.target_from_source;
       result.pose_kind = RelativePoseKind::kSim3;
+      std::vector<Eigen::Vector3d> q_in, m_in;
+      for (int i : r.inliers) {
+        q_in.push_back(src[static_cast<size_t>(i)]);
+        m_in.push_back(dst[static_cast<size_t>(i)]);
+      }
+      result.information = Sim3Information(q_in, m_in, result.match_from_query,
+                                           options.InformationOptions(focal));
       result.success = accept(result.inliers);
     }
     if (result.success) return result;

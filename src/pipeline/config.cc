@@ -212,6 +212,7 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     d->Get("planar_alternative_tolerance", &o.planar_alternative_tolerance);
     d->Get("consistency_base_deg", &o.consistency_base_deg);
     d->Get("consistency_per_keyframe_deg", &o.consistency_per_keyframe_deg);
+    d->Get("two_view_consistency_per_keyframe_deg", &o.two_view_consistency_per_keyframe_deg);
     d->Get("consistency_max_deg", &o.consistency_max_deg);
     d->Get("temporal_check", &o.temporal_check);
     d->Get("temporal_window", &o.temporal_window);
@@ -244,10 +245,23 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     p->Get("max_chain_length", &o.max_chain_length);
     p->Finish();
   }
+  if (auto p = root.Object("odometry")) {
+    OdometryWeighting& o = options->odometry;
+    p->Get("translation_fraction", &o.translation_fraction);
+    p->Get("min_translation_sigma", &o.min_translation_sigma);
+    p->Get("rotation_sigma_rad", &o.rotation_sigma_rad);
+    p->Get("scale_sigma", &o.scale_sigma);
+    p->Finish();
+  }
   root.GetEnum("vertex_type", &options->vertex_type, ParseVertex, "one of sim3|se3|4dof");
   root.Get("loop_translation_sigma_steps", &options->loop_translation_sigma_steps);
   root.Get("loop_rotation_sigma_rad", &options->loop_rotation_sigma_rad);
   root.Get("loop_scale_sigma", &options->loop_scale_sigma);
+  root.Get("loop_information_from_estimate", &options->loop_information_from_estimate);
+  root.Get("loop_covariance_inflation", &options->loop_covariance_inflation);
+  root.Get("loop_min_translation_sigma_steps", &options->loop_min_translation_sigma_steps);
+  root.Get("loop_min_rotation_sigma_rad", &options->loop_min_rotation_sigma_rad);
+  root.Get("loop_min_scale_sigma", &options->loop_min_scale_sigma);
   root.Get("use_mapped_pixels", &options->use_mapped_pixels);
   root.Get("raw_association_max_dt", &options->raw_association_max_dt);
   root.Get("skip_unreadable_frames", &options->skip_unreadable_frames);
@@ -335,6 +349,7 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"planar_alternative_tolerance", d.planar_alternative_tolerance},
             {"consistency_base_deg", d.consistency_base_deg},
             {"consistency_per_keyframe_deg", d.consistency_per_keyframe_deg},
+            {"two_view_consistency_per_keyframe_deg", d.two_view_consistency_per_keyframe_deg},
             {"consistency_max_deg", d.consistency_max_deg},
             {"temporal_check", d.temporal_check},
             {"temporal_window", d.temporal_window},
@@ -359,10 +374,20 @@ nlohmann::json ConfigToJson(const PipelineOptions& options) {
             {"num_threads", options.optimizer.num_threads},
             {"reduce_chains", options.optimizer.reduce_chains},
             {"max_chain_length", options.optimizer.max_chain_length}}},
+          {"odometry",
+           {{"translation_fraction", options.odometry.translation_fraction},
+            {"min_translation_sigma", options.odometry.min_translation_sigma},
+            {"rotation_sigma_rad", options.odometry.rotation_sigma_rad},
+            {"scale_sigma", options.odometry.scale_sigma}}},
           {"vertex_type", VertexName(options.vertex_type)},
           {"loop_translation_sigma_steps", options.loop_translation_sigma_steps},
           {"loop_rotation_sigma_rad", options.loop_rotation_sigma_rad},
           {"loop_scale_sigma", options.loop_scale_sigma},
+          {"loop_information_from_estimate", options.loop_information_from_estimate},
+          {"loop_covariance_inflation", options.loop_covariance_inflation},
+          {"loop_min_translation_sigma_steps", options.loop_min_translation_sigma_steps},
+          {"loop_min_rotation_sigma_rad", options.loop_min_rotation_sigma_rad},
+          {"loop_min_scale_sigma", options.loop_min_scale_sigma},
           {"use_mapped_pixels", options.use_mapped_pixels},
           {"raw_association_max_dt", options.raw_association_max_dt},
           {"skip_unreadable_frames", options.skip_unreadable_frames}};

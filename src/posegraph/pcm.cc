@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numeric>
 
+#include <Eigen/Eigenvalues>
+
 #include "sparseloop/core/check.h"
 #include "sparseloop/posegraph/pose_graph.h"
 
@@ -102,10 +104,19 @@ double Chi2Quantile(double p, int dof) {
   return k * c * c * c;
 }
 
-// Maximum clique: greedy by degree, then exact branch and bound when small enough.
+// Maximum clique: greedy by degree, then exact branch and bound when small enough. Among cliques
+// of the same size the one with the larger sum of loop weights wins: two loops that contradict
+// each other (a strong metric loop of 80 inliers and a weak two-view one of 24) are each a
+// clique of one, and the order they were found in must not decide.
 class CliqueFinder {
  public:
-  explicit CliqueFinder(const std::vector<std::vector<bool>>& adj) : adj_(adj), n_(adj.size()) {}
+  CliqueFinder(const std::vector<std::vector<bool>>& adj, const std::vector<double>& weights)
+      : adj_(adj), weights_(weights), n_(adj.size()) {}
+
+  bool Better(const std::vector<size_t>& a, const std::vector<size_t>& b) const {
+    if (a.size() != b.size()) return a.size() > b.size();
+    return Weight(a) > Weight(b) + 1e-12;
+  }
 
   std::vector<size_t> Greedy() const {
     std::vector<size_t> order(n_);
@@ -113,12 +124,13 @@ class CliqueFinder {
     std::vector<size_t> degree(n_, 0);
     for (size_t i = 0; i < n_; ++i)
       for (size_t j = 0; j < n_; ++j) degree[i] += adj_[i][j] ? 1 : 0;
-    std::stable_sort(order.begin(), order.end(),
-                     [&](size_t a, size_t b) { return degree[a] > degree[b]; });
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+      return degree[a] != degree[b] ? degree[a] > degree[b] : weights_[a] > weights_[b];
+    });
     std::vector<size_t> best;
     // Seed from each vertex (in degree order), grow greedily; keep the largest.
     for (size_t seed : order) {
-      if (degree[seed] + 1 <= best.size()) break;
+      if (degree[seed] + 1 < best.size()) break;
       std::vector<size_t> clique{seed};
       for (size_t v : order) {
         if (v == seed) continue;
@@ -126,7 +138,7 @@ class CliqueFinder {
         for (size_t u : clique) ok = ok && adj_[u][v];
         if (ok) clique.push_back(v);
       }
-      if (clique.size() > best.size()) best = clique;
+      if (Better(clique, best)) best = clique;
     }
     return best;
   }
@@ -146,7 +158,7 @@ class CliqueFinder {
   void Expand(std::vector<size_t>& current, std::vector<size_t> candidates) {
     if (++steps_ > max_steps_) return;
     while (!candidates.empty()) {
-      if (current.size() + candidates.size() <= best_.size()) return;
+      if (current.size() + candidates.size() < best_.size()) return;
       const size_t v = candidates.back();
       candidates.pop_back();
       std::vector<size_t> next;
@@ -154,7 +166,7 @@ class CliqueFinder {
         if (adj_[v][u]) next.push_back(u);
       current.push_back(v);
       if (next.empty()) {
-        if (current.size() > best_.size()) best_ = current;
+        if (Better(current, best_)) best_ = current;
       } else {
         Expand(current, next);
       }
@@ -162,7 +174,14 @@ class CliqueFinder {
     }
   }
 
+  double Weight(const std::vector<size_t>& clique) const {
+    double w = 0.0;
+    for (size_t v : clique) w += weights_[v];
+    return w;
+  }
+
   const std::vector<std::vector<bool>>& adj_;
+  const std::vector<double>& weights_;
   size_t n_;
   std::vector<size_t> best_;
   size_t steps_ = 0;
@@ -210,14 +229,33 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     cov[6] = steps * ss2;
     return cov;
   };
-  // Per-loop diagonal covariance from the (effective) information.
+  // Per-loop marginal variances from the (effective) information. A diagonal information is
+  // inverted per component; a full one (a loop whose information came from its inliers) through
+  // its eigen-decomposition: marginal variances of the observable part, infinite for every
+  // component an unobservable direction touches (1 / diag would be the conditional variance, too
+  // small when the components are correlated).
   auto loop_cov = [&](const LoopConstraint& loop) {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const Matrix7d info = LoopEffectiveInformation(loop);
     Eigen::Matrix<double, 7, 1> cov;
-    for (int d = 0; d < 7; ++d) {
-      const double info = loop.weight * loop.information(d, d);
-      cov[d] = info > 0 ? 1.0 / info : std::numeric_limits<double>::infinity();
+    if (info.isDiagonal(0.0)) {
+      for (int d = 0; d < 7; ++d) cov[d] = info(d, d) > 0 ? 1.0 / info(d, d) : kInf;
+      return cov;
     }
-    if (!loop.has_scale) cov[6] = std::numeric_limits<double>::infinity();
+    const Eigen::SelfAdjointEigenSolver<Matrix7d> eig(info);
+    const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
+    cov.setZero();
+    for (int k = 0; k < 7; ++k) {
+      const double lambda = eig.eigenvalues()[k];
+      const Eigen::Matrix<double, 7, 1> v = eig.eigenvectors().col(k);
+      for (int d = 0; d < 7; ++d) {
+        if (lambda > tol) {
+          cov[d] += v[d] * v[d] / lambda;
+        } else if (std::abs(v[d]) > 1e-6) {
+          cov[d] = kInf;
+        }
+      }
+    }
     return cov;
   };
   std::vector<double> thresholds(8, 0.0);
@@ -256,8 +294,11 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
 namespace {
 
 std::vector<size_t> MaximumClique(const std::vector<std::vector<bool>>& adj,
+                                  const std::vector<LoopConstraint>& loops,
                                   const PcmOptions& options) {
-  CliqueFinder finder(adj);
+  std::vector<double> weights;
+  for (const LoopConstraint& l : loops) weights.push_back(l.weight);
+  CliqueFinder finder(adj, weights);
   std::vector<size_t> clique = finder.Greedy();
   if (adj.size() <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
   std::sort(clique.begin(), clique.end());
@@ -274,12 +315,37 @@ bool SameConsistencyTest(const PcmOptions& a, const PcmOptions& b) {
 
 }  // namespace
 
+LoopResidualCheck PoseGraph::CheckLoop(size_t index, double confidence) const {
+  SL_CHECK_MSG(index < loops_.size(), "loop index {} out of range ({} loops)", index,
+               loops_.size());
+  const LoopConstraint& loop = loops_[index];
+  LoopResidualCheck check;
+  check.loop = index;
+  check.query_id = loop.query_id;
+  check.match_id = loop.match_id;
+  const Sim3d& match = poses_[Index(loop.match_id)];
+  const Sim3d& query = poses_[Index(loop.query_id)];
+  Vector7d r = (loop.match_from_query.Inverse() * match.Inverse() * query).Log();
+  if (type_ != VertexType::kSim3) r[6] = 0.0;
+  const Matrix7d info = LoopEffectiveInformation(loop);
+  check.chi2 = r.dot(info * r);
+  const Eigen::SelfAdjointEigenSolver<Matrix7d> eig(info);
+  const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
+  for (int k = 0; k < 7; ++k) check.dof += eig.eigenvalues()[k] > tol ? 1 : 0;
+  check.threshold = check.dof > 0 ? Chi2Quantile(confidence, check.dof) : 0.0;
+  check.consistent = check.dof == 0 || check.chi2 <= check.threshold;
+  check.translation_error = r.head<3>().norm();
+  check.rotation_error_rad = r.segment<3>(3).norm();
+  check.log_scale_error = r[6];
+  return check;
+}
+
 std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) const {
   options.Check();
   if (loops_.empty()) return {};
   std::vector<std::vector<bool>> adj;
   ExtendPcmAdjacency(options, 0, &adj);
-  return MaximumClique(adj, options);
+  return MaximumClique(adj, loops_, options);
 }
 
 std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& options) {
@@ -292,7 +358,7 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
   }
   ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj);
   pcm_cache_.loops = loops_.size();
-  return MaximumClique(pcm_cache_.adj, options);
+  return MaximumClique(pcm_cache_.adj, loops_, options);
 }
 
 }  // namespace sparseloop

@@ -277,15 +277,6 @@ bool UsesSwitches(const PoseGraphOptions& options) {
          options.rejection == OutlierRejection::kPcmAndSwitchable;
 }
 
-Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {
-  Matrix7d info = loop.weight * loop.information;
-  if (!loop.has_scale) {
-    info.row(6).setZero();
-    info.col(6).setZero();
-  }
-  return info;
-}
-
 // Switchable loop: r = s * S * log(...), with a separate prior on the switch s in [0, 1].
 class SwitchableEdgeError {
  public:
@@ -549,9 +540,20 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
     if (rejected) {
       summary.rejected_loops.push_back(k);
       summary.rejected_loop_ids.push_back({loops_[k].query_id, loops_[k].match_id});
+    } else {
+      summary.loop_checks.push_back(CheckLoop(k, options.pcm.confidence));
     }
   }
   return summary;
+}
+
+Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {
+  Matrix7d info = loop.weight * loop.information;
+  if (!loop.has_scale) {
+    info.row(6).setZero();
+    info.col(6).setZero();
+  }
+  return info;
 }
 
 PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,

@@ -82,6 +82,9 @@ struct LoopResult {
   RelativePoseKind pose_kind = RelativePoseKind::kNone;
   // p_in_match = match_from_query * p_in_query; see pose_kind for what is meaningful.
   Sim3d match_from_query;
+  // Information of match_from_query from the verifying inliers (VerificationResult::information:
+  // PnP / Sim(3) only, zero for a two-view pose); the pose graph's loop edge uses it.
+  PoseInformation7 information = PoseInformation7::Zero();
   double rotation_error_vs_prior_deg = -1.0;  // -1 when no prior was available
   // Local-map PnP (Options::local_map): points of the local map around match_id, and the PnP
   // inliers among them, when it gave the pose (method kPnP, pose_kind kSE3Metric); 0 otherwise.
@@ -134,10 +137,19 @@ class LoopDetector {
     // stretch of a forward motion). Needs poses; 0 disables. ratio >= 0.
     double min_path_ratio = 3.0;
     // Pose-prior consistency: |angle(R_verified, R_prior)| <= min(max, base + per_keyframe * n),
-    // n = keyframes since the last accepted loop (or since the start). Degrees.
+    // n = keyframes of odometry between the candidate and the query along the loop graph: the
+    // index difference, or shorter through an accepted loop (|query - loop query| + |loop match -
+    // candidate|), i.e. the odometry since the two places were last tied together. The raw
+    // rotation between them can have drifted by that much (a monocular VO's heading bias is up to
+    // ~1 deg per keyframe: castle ring family, docs/DETECTOR.md "Rotation gate"); PCM in the pose
+    // graph stays the outlier filter for loops the wider gate lets through. A pose from 3D points
+    // (PnP / Sim(3)) uses consistency_per_keyframe_deg; a two-view pose (essential matrix, which
+    // can pick the wrong one of two supported solutions) two_view_consistency_per_keyframe_deg.
+    // Degrees.
     bool check_consistency = true;
     double consistency_base_deg = 10.0;
-    double consistency_per_keyframe_deg = 0.1;
+    double consistency_per_keyframe_deg = 1.0;
+    double two_view_consistency_per_keyframe_deg = 0.1;
     double consistency_max_deg = 45.0;
     // Planar scenes (monocular two-view loops only, when the local map gave no pose): when the
     // lowest-cost essential-matrix pose fails the consistency check, the other poses the same
@@ -256,6 +268,9 @@ class LoopDetector {
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size
   // of the map.
+  // A PnP loop whose query has triangulated depths: the relative scale from them (kSim3).
+  void AddQueryScale(const KeyframeRecord& query, const KeyframeRecord& map,
+                     const std::vector<DescriptorMatch>& matches, VerificationResult* v) const;
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
                                            int* map_points) const;
 
@@ -265,7 +280,11 @@ class LoopDetector {
   std::vector<KeyframeRecord> records_;
   std::vector<double> path_length_;  // cumulative path length at each keyframe (pose units)
   std::unordered_map<int64_t, size_t> index_of_;
-  int64_t last_loop_index_ = 0;  // keyframe index of the last accepted loop (or 0)
+  // Keyframe indices (query, match) of every loop this detector accepted, in order.
+  std::vector<std::pair<size_t, size_t>> accepted_loops_;
+  // Keyframes of odometry between record indices a and b along the loop graph (Options::
+  // consistency_per_keyframe_deg): |a - b|, or shorter through one accepted loop.
+  size_t OdometryPathKeyframes(size_t a, size_t b) const;
   std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
   bool any_pose_ = false;
   bool any_missing_pose_ = false;

@@ -9,6 +9,7 @@
 #include "sparseloop/core/sim3.h"
 #include "sparseloop/features/informative_features.h"
 #include "sparseloop/matching/descriptor_matching.h"
+#include "sparseloop/matching/pose_information.h"
 
 namespace sparseloop {
 
@@ -36,6 +37,14 @@ struct VerifyOptions {
   bool use_fundamental = false;   // intrinsics unknown: fundamental matrix instead of essential
   bool use_depths = true;         // use PnP / Sim(3) when depths exist
   uint64_t seed = 42;             // RNG seed (cv::theRNG and the Sim(3) RANSAC)
+  // Floor of the residual sigma behind VerificationResult::information, pixels: a handful of
+  // near-perfect inliers must not claim a sub-pixel pose (ORB keypoints are localised to about
+  // half a pixel at the finest level).
+  double information_min_sigma_px = 0.5;
+  // The PoseInformationOptions for a pair with this (mean) focal length, pixels.
+  PoseInformationOptions InformationOptions(double focal_px) const {
+    return PoseInformationOptions{information_min_sigma_px / focal_px};
+  }
   void Check() const;
 };
 
@@ -47,6 +56,10 @@ struct VerificationResult {
   RelativePoseKind pose_kind = RelativePoseKind::kNone;
   // Pose of the query camera in the match camera: p_in_match = match_from_query * p_in_query.
   Sim3d match_from_query;
+  // PnP / Sim(3): the information of match_from_query from its inliers at the solution
+  // (pose_information.h; tangent [upsilon, omega, sigma] of a right perturbation, normalised
+  // image units). Zero for two-view (essential / fundamental) results.
+  PoseInformation7 information = PoseInformation7::Zero();
   std::vector<int> inlier_matches;  // indices into the matches
 };
 

@@ -29,6 +29,19 @@ struct PipelineOptions {
   // than a two-view one (castle 29 -> 02 from the local map: 0.16 deg).
   double loop_rotation_sigma_rad = 0.01;
   double loop_scale_sigma = 0.05;  // log-scale
+  // Loops whose verification measured their own uncertainty (LoopResult::information: PnP and
+  // Sim(3) loops) use it instead of the fixed sigmas above (docs/POSEGRAPH.md, "Loop
+  // information"): covariance = inflation x the Gauss-Newton covariance of the inliers, plus the
+  // floors below (added as covariances, so a loop never claims less than them), weight 1.
+  bool loop_information_from_estimate = true;
+  // Variance multiplier (>= 1): the inliers' Gauss-Newton covariance ignores the noise of the
+  // local map the query was verified against (triangulated with raw relative poses) and the
+  // correlation between neighbouring features. Measured in docs/POSEGRAPH.md (normalised
+  // estimation error squared of castle and rendered loops against their ground truth).
+  double loop_covariance_inflation = 10.0;
+  double loop_min_translation_sigma_steps = 0.02;  // floor, in raw steps at the query
+  double loop_min_rotation_sigma_rad = 0.001;      // floor, rad
+  double loop_min_scale_sigma = 0.005;             // floor, log-scale
   // Read DIR/mapped/NNNNNN.txt ("u v depth" per line) when the dataset folder has it.
   bool use_mapped_pixels = true;
   // Raw poses are matched to frames by timestamp when both have timestamps (max |dt|, seconds),

@@ -52,13 +52,15 @@ struct LoopConstraint {
 //   rotation:    rotation_sigma_rad                                       (rad, isotropic)
 //   log scale:   scale_sigma                                              (unitless)
 // i.e. information = diag(1/sigma^2). Uncertainty proportional to the distance travelled is the
-// usual VO drift model; a loop edge with a comparable sigma then pulls hard enough to correct
-// the accumulated drift while a single wrong loop cannot outweigh a long odometry chain.
+// usual VO drift model. The defaults are what real monocular vSLAM / VIO keyframe steps show
+// against their GT (docs/POSEGRAPH.md, "Odometry information"; DriftData.OdometryNoise): median
+// per-step rotation error 0.05-0.3 deg, translation 2.5-7 % of the step; scale drift up to ~1 %
+// per keyframe. A verified loop (its own, tighter covariance) then wins over the chain.
 struct OdometryWeighting {
-  double translation_fraction = 0.02;   // unitless: sigma_t / step length
+  double translation_fraction = 0.05;   // unitless: sigma_t / step length
   double min_translation_sigma = 1e-3;  // raw units: floor for stationary steps
-  double rotation_sigma_rad = 0.002;    // rad per step
-  double scale_sigma = 0.002;           // log-scale per step (only used by Sim(3) graphs)
+  double rotation_sigma_rad = 0.003;    // rad per step
+  double scale_sigma = 0.01;            // log-scale per step (only used by Sim(3) graphs)
   void Check() const;
   Matrix7d Information(const Sim3d& from_from_to) const;
 };
@@ -132,6 +134,24 @@ enum class PoseGraphStatus {
 };
 const char* ToString(PoseGraphStatus status);
 
+// After a solve: how well the solution satisfies one loop, measured against the loop's own
+// covariance. chi2 = r^T (weight x information) r with r = log(Z^-1 * inv(T_match) * T_query),
+// dof = rank of the information; `consistent` when chi2 <= the chi-square quantile at
+// PcmOptions::confidence. A loop the graph cannot satisfy (true loop with too small a covariance,
+// or a wrong loop PCM let through) shows here instead of silently bending the trajectory.
+struct LoopResidualCheck {
+  size_t loop = 0;  // index into PoseGraph::loops()
+  int64_t query_id = 0;
+  int64_t match_id = 0;
+  double chi2 = 0.0;
+  int dof = 0;
+  double threshold = 0.0;  // chi-square quantile for dof
+  bool consistent = true;
+  double translation_error = 0.0;    // |upsilon| of r, match-camera units
+  double rotation_error_rad = 0.0;   // |omega| of r
+  double log_scale_error = 0.0;      // sigma of r
+};
+
 struct PoseGraphSummary {
   PoseGraphStatus status = PoseGraphStatus::kNothingToDo;
   // 0.5 * sum of squared (robustified) residuals over every edge and used loop of the graph (Ceres
@@ -147,6 +167,8 @@ struct PoseGraphSummary {
   size_t num_solved_vertices = 0;      // vertices in the Ceres problem (fewer with reduce_chains)
   std::vector<size_t> rejected_loops;  // indices into PoseGraph::loops()
   std::vector<LoopPair> rejected_loop_ids;  // {query_id, match_id} of each rejected loop
+  // One per loop used in the solve (not rejected), in loops() order; see LoopResidualCheck.
+  std::vector<LoopResidualCheck> loop_checks;
   std::string ceres_message;
   std::string BriefReport() const;
 };
@@ -196,6 +218,10 @@ class PoseGraph {
   // loops the full test is ~2 million Sim(3) cycles). Recomputed from scratch when the test's
   // options change. Not thread-safe (a graph is solved by one thread at a time).
   std::vector<size_t> PcmConsistentLoopsIncremental(const PcmOptions& options);
+
+  // The residual of loop `index` at the current estimates against its own covariance
+  // (LoopResidualCheck); `confidence` as PcmOptions::confidence.
+  LoopResidualCheck CheckLoop(size_t index, double confidence) const;
 
  private:
   size_t Index(int64_t id) const;
@@ -258,6 +284,10 @@ LoopConstraint MakeLoopConstraintFromDirection(int64_t query_id, int64_t match_i
                                                const Eigen::Vector3d& unit_direction,
                                                double local_step_length,
                                                const DirectionLoopOptions& options = {});
+
+// The information the solver uses for a loop: weight x information, the scale row and column
+// zeroed when !has_scale.
+Matrix7d LoopEffectiveInformation(const LoopConstraint& loop);
 
 // Loop information from standard deviations (translation in the query's raw units, rotation in
 // rad, log-scale unitless): diag(1/sigma^2).
