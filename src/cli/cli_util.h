@@ -1,9 +1,11 @@
 #pragma once
 // Small helpers shared by the subcommands (parsing only; no algorithm lives in the CLI).
+#include <cctype>
 #include <filesystem>
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -68,6 +70,39 @@ inline void CheckOutputFileFlag(const std::string& flag, const std::string& path
 inline void CheckOutputDirFlag(const std::string& flag, const std::string& dir,
                                const std::vector<std::string>& file_names = {}) {
   NameTheFlag(flag, [&] { CheckOutputDirectory(dir, file_names); });
+}
+
+// Option fields named in library messages, with the flag that sets each: {"loss_scale",
+// "--loss-scale"}. A field is matched as a whole word ("GT loop distance" matches as a phrase).
+using FlagNames = std::vector<std::pair<std::string, std::string>>;
+
+// The message with the first field of `names` it mentions replaced by that field's flag:
+// "loss_scale must be > 0, got -1" -> "--loss-scale must be > 0, got -1". Unchanged when it
+// mentions none.
+inline std::string NameFlagsIn(const std::string& message, const FlagNames& names) {
+  const auto is_word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  for (const auto& [field, flag] : names) {
+    for (size_t pos = message.find(field); pos != std::string::npos;
+         pos = message.find(field, pos + 1)) {
+      const size_t end = pos + field.size();
+      if ((pos == 0 || !is_word(message[pos - 1])) &&
+          (end == message.size() || !is_word(message[end]))) {
+        return message.substr(0, pos) + flag + message.substr(end);
+      }
+    }
+  }
+  return message;
+}
+
+// Runs `check` (options' Check(), filled from flags) and rewrites an std::invalid_argument so it
+// names the flag the user typed instead of the library's field (exit 2 either way).
+template <typename Check>
+void CheckNamingFlags(const FlagNames& names, Check&& check) {
+  try {
+    check();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(NameFlagsIn(e.what(), names));
+  }
 }
 
 }  // namespace sparseloop::cli

@@ -34,30 +34,6 @@ namespace sparseloop::cli {
 
 namespace {
 
-// "fx,fy,cx,cy" -> intrinsics (std::invalid_argument when malformed).
-CameraIntrinsics ParseIntrinsics(const std::string& spec) {
-  std::vector<double> v;
-  std::stringstream ss(spec);
-  std::string item;
-  bool ok = true;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      ok = ok && used == item.size();
-    } catch (const std::exception&) {
-      ok = false;
-    }
-  }
-  SL_CHECK_MSG(ok && v.size() == 4, "--intrinsics expects fx,fy,cx,cy (4 numbers), got '{}'", spec);
-  CameraIntrinsics k;
-  k.fx = v[0];
-  k.fy = v[1];
-  k.cx = v[2];
-  k.cy = v[3];
-  return k;
-}
-
 nlohmann::json Stats(std::vector<double> values) {
   if (values.empty()) return {{"median", 0.0}, {"p90", 0.0}, {"max", 0.0}};
   std::sort(values.begin(), values.end());
@@ -73,13 +49,13 @@ nlohmann::json Stats(std::vector<double> values) {
 
 int RunDetect(int argc, char** argv) {
   CLI::App app{"Detect loop closures in an image sequence (writes loops.csv and summary.json)"};
-  std::string dataset_spec, poses, intrinsics_spec, search_name, config_path, out_dir, map_path;
-  std::optional<int> k;
+  std::string dataset_spec, poses, intrinsics_spec, config_path, out_dir, map_path;
+  DetectorOverrides overrides;
   app.add_option("--dataset", dataset_spec, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
       ->required();
   app.add_option("--poses", poses, "raw vSLAM poses (any trajectory format), one per frame");
   app.add_option("--intrinsics", intrinsics_spec, "fx,fy,cx,cy (overrides the dataset's)");
-  AddFeaturesAndSearchFlags(app, &k, &search_name);
+  AddDetectorOverrideFlags(app, &overrides);
   app.add_option("--config", config_path, "JSON options ({\"detector\": {...}})");
   app.add_option("--out", out_dir, "output directory")->required();
   app.add_option("--map", map_path,
@@ -91,24 +67,23 @@ int RunDetect(int argc, char** argv) {
   PipelineOptions pipeline_options;
   if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);
   LoopDetector::Options options = pipeline_options.detector;
-  if (k) options.features.max_features = *k;
-  if (!search_name.empty()) options.search.strategy = ParseSearchStrategy(search_name);
+  ApplyDetectorOverrides(overrides, &options);
 
   DatasetOptions dataset_options;
   dataset_options.intrinsics_name = "--intrinsics";
-  if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsics(intrinsics_spec);
+  if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsicsFlag(intrinsics_spec);
   if (!poses.empty()) dataset_options.poses = poses;
   const Dataset dataset = OpenDataset(dataset_spec, dataset_options);
   SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", dataset_spec);
   const bool have_poses = dataset.has_gt();
   if (!have_poses) {
-    if (search_name.empty()) {
+    if (overrides.search.empty()) {
       options.search.strategy = SearchStrategy::kGlobal;
       Logger().info("no poses for '{}': using the global search area", dataset_spec);
     } else {
       SL_CHECK_MSG(options.search.strategy == SearchStrategy::kGlobal,
                    "--search {} needs poses (--poses FILE); without poses use --search global",
-                   search_name);
+                   overrides.search);
     }
   }
   options.Check();

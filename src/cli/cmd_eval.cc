@@ -125,7 +125,17 @@ int RunEval(int argc, char** argv) {
   } else {
     options.association.method = ParseAssociationMethod(associate);
   }
-  options.Check();
+  CheckNamingFlags({{"max_dt", "--max-dt"},
+                    {"RPE delta", "--rpe-delta"},
+                    {"max_view_angle_deg", "--view-angle"},
+                    {"frame_tolerance", "--frame-tolerance"},
+                    {"GT loop distance", "--derive-loops DIST"},
+                    {"GT loop min_gap", "--derive-loops GAP"}},
+                   [&] {
+                     options.Check();
+                     loop_options.Check();
+                     if (!derive_loops.empty()) gt_loop_options.Check();
+                   });
 
   const TrajectoryEvaluation e = EvaluateTrajectory(gt, est, options);
   if (e.status == EvaluationStatus::kNoAssociation) {

@@ -45,6 +45,10 @@ int RunOptimize(int argc, char** argv) {
   SL_CHECK_MSG(it != losses.end(), "--robust must be none, huber or cauchy, got '{}'", robust);
   options.edge_loss = it->second;
   options.loop_loss = it->second;
+  CheckNamingFlags({{"loss_scale", "--loss-scale"},
+                    {"max_iterations", "--max-iterations"},
+                    {"num_threads", "--threads"}},
+                   [&] { options.Check(); });
 
   PoseGraph graph = ReadG2o(in);
   const PoseGraphSummary summary = graph.Optimize(options);

@@ -117,6 +117,20 @@ int RunRender(int argc, char** argv) {
   seq.drift.scale_bias_per_100m *= drift_scale;
   seq.photometric.gain_amplitude *= photometric_scale;
   seq.photometric.gamma_amplitude *= photometric_scale;
+  if (frames > 0) plan.frames = frames;
+  CheckNamingFlags({{"altitude", "--altitude"},
+                    {"tilt_deg", "--tilt"},
+                    {"size", "--size"},
+                    {"laps", "--laps"},
+                    {"frames", "--frames"},
+                    {"noise_sigma", "--noise"},
+                    {"blur_sigma", "--blur"},
+                    {"gain_amplitude", "--photometric"},
+                    {"gamma_amplitude", "--photometric"}},
+                   [&] {
+                     plan.Check();
+                     seq.Check();
+                   });
 
   std::shared_ptr<const syn::TextureSet> textures;
   if (textures_dir.empty()) {
@@ -137,7 +151,6 @@ int RunRender(int argc, char** argv) {
       gt = ReadTrajectory(trajectory_path);
     } else {
       plan.plan = syn::ParseFlightPlan(plan_name);
-      if (frames > 0) plan.frames = frames;
       gt = syn::MakeFlightTrajectory(plan);
     }
     syn::AerialWorldOptions options;

@@ -23,6 +23,7 @@ int RunReport(int argc, char** argv) {
                  "GT distance (m) beyond which an accepted loop is drawn as false")
       ->capture_default_str();
   Parse(app, argc, argv);
+  CheckNamingFlags({{"false_loop_distance", "--false-loop-distance"}}, [&] { options.Check(); });
   options.script = script;
   options.python = python;
   const auto result = synthetic::MakeReport(dir, options);

@@ -3,11 +3,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <unordered_map>
 
+#include <fmt/format.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -46,6 +48,11 @@ int RunRun(int argc, char** argv) {
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
   Parse(app, argc, argv);
   CheckOutputDirFlag("--out", flags.out, kRunOutputFiles);
+  // Checked now, not after the run: -1 (not given) means the default.
+  if (gt_loop_distance != -1.0 && !(std::isfinite(gt_loop_distance) && gt_loop_distance > 0.0)) {
+    throw std::invalid_argument(
+        fmt::format("--gt-loop-distance must be a distance > 0, got {}", gt_loop_distance));
+  }
 
   PipelineOptions options = PipelineOptionsFromFlags(flags);
   if (!vertex.empty())

@@ -22,29 +22,6 @@ double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-CameraIntrinsics ParseIntrinsics(const std::string& text) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      SL_CHECK_MSG(used == item.size(), "--intrinsics: '{}' is not a number", item);
-    } catch (const std::logic_error&) {
-      SL_CHECK_MSG(false, "--intrinsics expects fx,fy,cx,cy; '{}' is not a number", item);
-    }
-  }
-  SL_CHECK_MSG(v.size() == 4, "--intrinsics expects 4 numbers fx,fy,cx,cy, got {}", v.size());
-  CameraIntrinsics c;
-  c.fx = v[0];
-  c.fy = v[1];
-  c.cx = v[2];
-  c.cy = v[3];
-  c.Check();
-  return c;
-}
-
 struct Stats {
   double median = 0, p90 = 0, p99 = 0, max = 0, mean = 0;
 };
@@ -72,15 +49,63 @@ std::string Fmt(const std::optional<double>& v, int precision = 3) {
 
 }  // namespace
 
-void AddFeaturesAndSearchFlags(CLI::App& app, std::optional<int>* k, std::string* search) {
+CameraIntrinsics ParseIntrinsicsFlag(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  bool ok = true;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      ok = ok && used == item.size();
+    } catch (const std::logic_error&) {
+      ok = false;
+    }
+  }
+  if (!ok || v.size() != 4) {
+    throw std::invalid_argument(
+        fmt::format("--intrinsics expects fx,fy,cx,cy (4 numbers), got '{}'", text));
+  }
+  CameraIntrinsics c;
+  c.fx = v[0];
+  c.fy = v[1];
+  c.cx = v[2];
+  c.cy = v[3];
+  // "intrinsics: fx must be positive ..." -> "--intrinsics: fx must be positive ...".
+  CheckNamingFlags({{"intrinsics", "--intrinsics"}}, [&] { c.Check(); });
+  return c;
+}
+
+void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* o) {
   const LoopDetector::Options defaults;
-  app.add_option("-K,--features", *k, "Informative features kept per keyframe (overrides --config)")
+  app.add_option("-K,--features", o->k, "Informative features kept per keyframe (overrides --config)")
       ->check(IntegerAtLeast(1))
       ->default_str(std::to_string(defaults.features.max_features));
-  app.add_option("--search", *search,
+  app.add_option("--search", o->search,
                  "Search area: paper | radius | global (overrides --config; global without poses)")
       ->check(CLI::IsMember({"paper", "radius", "global"}))
       ->default_str(ToString(defaults.search.strategy));
+  app.add_option("--exclude-recent", o->exclude_recent,
+                 "Keyframes just before the query never searched (detector.search.exclude_recent; "
+                 "a short sequence needs a small value)")
+      ->check(IntegerAtLeast(0))
+      ->default_str(std::to_string(defaults.search.exclude_recent));
+  app.add_option("--min-path-ratio", o->min_path_ratio,
+                 "A candidate needs a path from it to the query of at least this many times "
+                 "their straight-line distance (detector.min_path_ratio; needs poses; 0: off)")
+      ->default_str(fmt::format("{}", defaults.min_path_ratio));
+}
+
+void ApplyDetectorOverrides(const DetectorOverrides& o, LoopDetector::Options* options) {
+  if (o.k) options->features.max_features = *o.k;
+  if (!o.search.empty()) options->search.strategy = ParseSearchStrategy(o.search);
+  if (o.exclude_recent) options->search.exclude_recent = *o.exclude_recent;
+  if (o.min_path_ratio) options->min_path_ratio = *o.min_path_ratio;
+  CheckNamingFlags({{"features.max_features (K)", "-K"},
+                    {"exclude_recent", "--exclude-recent"},
+                    {"min_path_ratio", "--min-path-ratio"}},
+                   [&] { options->Check(); });
 }
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
@@ -89,7 +114,7 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
   app.add_option("--poses", f->poses, "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file)")
       ->required();
   app.add_option("--intrinsics", f->intrinsics, "fx,fy,cx,cy (required for images:DIR)");
-  AddFeaturesAndSearchFlags(app, &f->k, &f->search);
+  AddDetectorOverrideFlags(app, &f->detector);
   app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
   app.add_option("--out", f->out, "Output directory")->required();
   app.add_flag("--quiet", f->quiet, "No progress line");
@@ -98,8 +123,7 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
-  if (flags.k) options.detector.features.max_features = *flags.k;
-  if (!flags.search.empty()) options.detector.search.strategy = ParseSearchStrategy(flags.search);
+  ApplyDetectorOverrides(flags.detector, &options.detector);
   if (flags.poses.empty() && options.detector.search.strategy != SearchStrategy::kGlobal) {
     // Without poses only the global search is defined.
     options.detector.search.strategy = SearchStrategy::kGlobal;
@@ -111,7 +135,7 @@ PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
   DatasetOptions options;
   options.intrinsics_name = "--intrinsics";
-  if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsics(flags.intrinsics);
+  if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsicsFlag(flags.intrinsics);
   return OpenDataset(flags.dataset, options);
 }
 

@@ -20,20 +20,32 @@
 
 namespace sparseloop::cli {
 
+// Detector options set by flags of `detect` and `run`, applied over the defaults and --config.
+struct DetectorOverrides {
+  std::optional<int> k;                  // -K,--features
+  std::string search;                    // --search paper | radius | global (empty: keep)
+  std::optional<int> exclude_recent;     // --exclude-recent (search.exclude_recent)
+  std::optional<double> min_path_ratio;  // --min-path-ratio
+};
+
 struct DetectorFlags {
   std::string dataset;     // kitti:DIR | tum:DIR | euroc:DIR | images:DIR
   std::string poses;       // raw vSLAM poses
   std::string intrinsics;  // fx,fy,cx,cy
-  std::optional<int> k;    // -K override (none: config / default)
-  std::string search;      // paper | radius | global (empty: config / default)
+  DetectorOverrides detector;
   std::string config;      // JSON configuration file
   std::string out;         // output directory
   bool quiet = false;      // no progress line
 };
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* flags);
-// -K,--features and --search, shared by `detect` and `run`: help shows the detector's defaults.
-void AddFeaturesAndSearchFlags(CLI::App& app, std::optional<int>* k, std::string* search);
+// "fx,fy,cx,cy" -> intrinsics; std::invalid_argument naming --intrinsics when malformed or invalid.
+CameraIntrinsics ParseIntrinsicsFlag(const std::string& text);
+// -K,--features, --search, --exclude-recent and --min-path-ratio, shared by `detect` and `run`:
+// help shows the detector's defaults.
+void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* overrides);
+// Applies the flags given to `options` and checks them; an invalid value names its flag.
+void ApplyDetectorOverrides(const DetectorOverrides& overrides, LoopDetector::Options* options);
 // Defaults, then --config, then the explicit flags (-K, --search).
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags);

@@ -1,15 +1,18 @@
 #include "sparseloop/core/check.h"
 
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/logging.h"
 
 namespace sparseloop {
 namespace internal {
 
 void ThrowCheckFailure(const char* file, int line, const char* condition,
                        const std::string& message) {
-  std::string what = fmt::format("Check failed: {} ({}:{})", condition, file, line);
-  if (!message.empty()) what += ": " + message;
-  throw std::invalid_argument(what);
+  // Developers get the expression and the location; users only the readable message.
+  Logger().debug("check failed: {} ({}:{}){}{}", condition, file, line,
+                 message.empty() ? "" : ": ", message);
+  throw CheckError(message.empty() ? fmt::format("check failed: {}", condition) : message,
+                   condition, file, line);
 }
 
 }  // namespace internal

@@ -25,5 +25,25 @@ TEST(Error, CheckThrowsInvalidArgumentWithMessage) {
   EXPECT_NO_THROW(SL_CHECK(1 + 1 == 2));
 }
 
+// Users read the message only; the expression and the location stay available to developers.
+TEST(Error, CheckMessageIsReadableAndKeepsTheLocationForDevelopers) {
+  try {
+    const double loss_scale = -1;
+    SL_CHECK_MSG(loss_scale > 0, "loss_scale must be > 0, got {}", loss_scale);
+    FAIL() << "no throw";
+  } catch (const CheckError& e) {
+    EXPECT_STREQ(e.what(), "loss_scale must be > 0, got -1");
+    EXPECT_STREQ(e.condition(), "loss_scale > 0");
+    EXPECT_NE(std::string(e.file()).find("error_test.cc"), std::string::npos);
+    EXPECT_GT(e.line(), 0);
+  }
+  try {
+    SL_CHECK(2 + 2 == 5);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "check failed: 2 + 2 == 5");  // no source path
+  }
+}
+
 }  // namespace
 }  // namespace sparseloop
