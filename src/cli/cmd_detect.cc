@@ -34,6 +34,9 @@ namespace sparseloop::cli {
 
 namespace {
 
+// Every file `detect` writes into --out.
+const std::vector<std::string> kDetectOutputFiles = {"loops.csv", "summary.json"};
+
 nlohmann::json Stats(std::vector<double> values) {
   if (values.empty()) return {{"median", 0.0}, {"p90", 0.0}, {"max", 0.0}};
   std::sort(values.begin(), values.end());
@@ -62,7 +65,7 @@ int RunDetect(int argc, char** argv) {
                  "persistent map (SQLite): earlier sessions in it are searched too (multi-session "
                  "loops, loops.csv match_session > 0); this run is stored as a new session");
   Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", out_dir, {"loops.csv", "summary.json"});
+  CheckOutputDirFlag("--out", out_dir, kDetectOutputFiles);
 
   PipelineOptions pipeline_options;
   if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);
@@ -87,6 +90,9 @@ int RunDetect(int argc, char** argv) {
     }
   }
   options.Check();
+  // Every input is read: the folder now holds this run only.
+  PrepareRunFolder(out_dir, "detect", dataset_spec, kDetectOutputFiles,
+                   {config_path, poses, map_path});
   LoopDetector detector(options);
 
   // Multi-session: load the earlier sessions of the map, then store this run as a new one.
@@ -156,6 +162,7 @@ int RunDetect(int argc, char** argv) {
     }
   });
   nlohmann::json summary = {
+      {"command", "detect"},
       {"dataset", dataset_spec},
       {"keyframes", dataset.frames.size()},
       {"loops", loops.size()},

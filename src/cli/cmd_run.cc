@@ -62,14 +62,28 @@ int RunRun(int argc, char** argv) {
 
   const Dataset dataset = OpenDatasetFromFlags(flags);
   const Trajectory raw_file = ReadTrajectory(flags.poses);
+  RequireOrientations("--poses", flags.poses, raw_file);
   const Trajectory raw =
       MatchRawPosesToFrames(dataset, raw_file, options.raw_association_max_dt, flags.poses);
   std::optional<Trajectory> gt;
+  std::string gt_file;  // the file evaluated against
   if (!gt_path.empty()) {
     gt = ReadTrajectory(gt_path);
+    RequireOrientations("--gt", gt_path, *gt);
+    gt_file = gt_path;
+    Logger().info("run: evaluating against --gt {} ({} poses){}", gt_path, gt->size(),
+                  dataset.has_gt() ? fmt::format("; the dataset's ground truth {} is not used",
+                                                 dataset.gt_path.string())
+                                   : "");
   } else if (dataset.has_gt()) {
     gt = dataset.GtTrajectory();
+    gt_file = dataset.gt_path.string();
+    Logger().info("run: evaluating against the dataset's ground truth {} ({} poses)", gt_file,
+                  gt->size());
   }
+  // Every input is read: the folder now holds this run only.
+  PrepareRunFolder(flags.out, "run", flags.dataset, kRunOutputFiles,
+                   {flags.config, flags.poses, gt_path, map_path});
   if (gt && !gt->has_timestamps) {
     // Index-only GT (KITTI): give each pose its frame's timestamp so that every file written
     // below shares one time base (TUM files, report, evo).
@@ -111,6 +125,8 @@ int RunRun(int argc, char** argv) {
       DetectionSummaryJson(result.frame_results, result.loops.size(), result.bytes_per_keyframe);
   summary["command"] = "run";
   summary["dataset"] = flags.dataset;
+  summary["poses_file"] = flags.poses;
+  if (gt) summary["gt_file"] = gt_file;
   summary["skipped_frames"] = result.skipped_frames;
   summary["cross_session_loops"] = result.cross_session_loops.size();
   summary["optimizer"] = {{"status", ToString(result.optimizer.status)},

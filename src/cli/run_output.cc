@@ -4,13 +4,17 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
 #include <cmath>
 #include <iomanip>
 #include <map>
 #include <sstream>
 
 #include "cli/cli_util.h"
+#include <fmt/ranges.h>
+
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/search/search_area.h"
@@ -137,6 +141,82 @@ Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
   options.intrinsics_name = "--intrinsics";
   if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsicsFlag(flags.intrinsics);
   return OpenDataset(flags.dataset, options);
+}
+
+void PrepareRunFolder(const std::string& out, const std::string& command,
+                      const std::string& dataset_spec, const std::vector<std::string>& files,
+                      const std::vector<std::string>& inputs) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const size_t colon = dataset_spec.find(':');
+  if (colon != std::string::npos) {
+    const fs::path dataset_dir = fs::weakly_canonical(dataset_spec.substr(colon + 1), ec);
+    if (!ec && fs::weakly_canonical(out, ec) == dataset_dir) {
+      throw std::invalid_argument(fmt::format(
+          "--out {}: expected a folder other than the dataset's ({}): the next run would read "
+          "the outputs written there as its input",
+          out, dataset_spec));
+    }
+  }
+  if (!fs::is_directory(out, ec)) return;  // created later; CheckOutputDirFlag checked it
+  const auto is_own = [&](const std::string& name) {
+    return std::find(files.begin(), files.end(), name) != files.end() || name == "report.html" ||
+           (name.rfind("report_", 0) == 0 && fs::path(name).extension() == ".png");
+  };
+  const auto is_input = [&](const fs::path& path) {
+    for (const std::string& input : inputs) {
+      if (input.empty()) continue;
+      // A --map database comes with SQLite's -wal / -shm files.
+      for (const char* suffix : {"", "-wal", "-shm"}) {
+        std::error_code e;
+        if (fs::equivalent(path, input + suffix, e)) return true;
+      }
+    }
+    return false;
+  };
+  std::vector<std::string> entries, foreign;
+  for (const auto& entry : fs::directory_iterator(out)) {
+    const std::string name = entry.path().filename().string();
+    if (is_input(entry.path())) continue;  // an input of this run: neither foreign nor removed
+    entries.push_back(name);
+    if (!is_own(name) || !entry.is_regular_file()) foreign.push_back(name);
+  }
+  if (entries.empty()) return;
+  bool same_command = false;
+  try {
+    std::ifstream in(fs::path(out) / "summary.json");
+    if (in) same_command = nlohmann::json::parse(in).value("command", "") == command;
+  } catch (const std::exception&) {
+    same_command = false;
+  }
+  if (!same_command && !foreign.empty()) {
+    std::sort(foreign.begin(), foreign.end());
+    throw std::invalid_argument(fmt::format(
+        "--out {}: expected an empty folder or the output of an earlier `sparseloop {}`, got a "
+        "folder holding {} other entr{} ({}{}); choose another --out",
+        out, command, foreign.size(), foreign.size() == 1 ? "y" : "ies", foreign.front(),
+        foreign.size() > 1 ? ", ..." : ""));
+  }
+  std::vector<std::string> removed;
+  std::sort(entries.begin(), entries.end());
+  for (const std::string& name : entries) {
+    if (is_own(name) && fs::remove(fs::path(out) / name, ec)) removed.push_back(name);
+  }
+  if (!removed.empty()) {
+    Logger().info("--out {}: removed {} file{} of the previous `{}` ({}), so the folder holds "
+                  "this run only",
+                  out, removed.size(), removed.size() == 1 ? "" : "s", command,
+                  fmt::join(removed, ", "));
+  }
+}
+
+void RequireOrientations(const std::string& flag, const std::string& path, const Trajectory& t) {
+  if (t.has_rotation) return;
+  throw std::invalid_argument(fmt::format(
+      "{} {}: expected a trajectory with orientations (TUM, KITTI or EuRoC), got a "
+      "positions-only file (frame x y z): `run` needs every pose's rotation for the pose graph "
+      "and its evaluation (`sparseloop eval` scores positions-only trajectories)",
+      flag, path));
 }
 
 ProgressLine::ProgressLine(std::string label, bool quiet)

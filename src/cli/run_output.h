@@ -50,6 +50,21 @@ void ApplyDetectorOverrides(const DetectorOverrides& overrides, LoopDetector::Op
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags);
 
+// A run folder holds one run. Before any work: refuses `out` equal to the dataset's folder (the
+// next run would read its outputs as input), refuses a non-empty `out` that is not a previous
+// output of `command` (its summary.json says "command": command, or it holds only files the
+// command writes and `inputs`: the --config / --poses / --gt / --map files the user placed
+// there), and otherwise deletes the files of the previous run that `files` names (plus
+// report.html / report_*.png, which describe it) and logs which. std::invalid_argument naming
+// --out (exit 2) when refused.
+void PrepareRunFolder(const std::string& out, const std::string& command,
+                      const std::string& dataset_spec, const std::vector<std::string>& files,
+                      const std::vector<std::string>& inputs);
+
+// A trajectory `run` builds on must carry orientations: FileError-based std::invalid_argument
+// naming `flag` and the file for a positions-only one.
+void RequireOrientations(const std::string& flag, const std::string& path, const Trajectory& t);
+
 // A one-line progress display on stderr when stderr is a terminal; silent otherwise.
 class ProgressLine {
  public:

@@ -1,5 +1,6 @@
 #pragma once
 // Runs the real sparseloop binary and captures its exit code, stdout and stderr.
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -13,5 +14,10 @@ struct CliResult {
 
 // RunCli({"eval", "--gt", path}) runs `sparseloop eval --gt path`.
 CliResult RunCli(const std::vector<std::string>& args);
+
+// A small rendered KITTI-layout sequence with loops (`sparseloop render --world aerial --plan
+// circuit --frames 60 --laps 2`: images, poses.txt GT, poses_raw.txt drifting raw poses), rendered
+// once per machine into the test temp root and shared read-only by the tests (about 7 s).
+const std::filesystem::path& RenderedLoopSequence();
 
 }  // namespace sparseloop::test
