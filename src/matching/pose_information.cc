@@ -11,6 +11,29 @@ namespace sparseloop {
 void PoseInformationOptions::Check() const {
   SL_CHECK_MSG(std::isfinite(min_sigma) && min_sigma > 0,
                "pose information min_sigma must be > 0 (normalised units), got {}", min_sigma);
+  SL_CHECK_MSG(std::isfinite(inlier_threshold) && inlier_threshold >= 0,
+               "pose information inlier_threshold must be >= 0, got {}", inlier_threshold);
+}
+
+double TruncatedResidualSigma(double mean_r2, double threshold) {
+  if (!(mean_r2 > 0)) return 0.0;
+  if (!(threshold > 0)) return std::sqrt(0.5 * mean_r2);
+  // m(sigma) = E[r^2 | r < R] grows monotonically from 0 (sigma -> 0) to R^2 / 2 (sigma -> inf,
+  // uniform over the disc); bisection on log sigma.
+  const double r2 = threshold * threshold;
+  auto moment = [&](double sigma) {
+    const double x = r2 / (2.0 * sigma * sigma);
+    if (x > 50.0) return 2.0 * sigma * sigma;
+    const double e = std::exp(-x);
+    return 2.0 * sigma * sigma * (1.0 - x * e / (1.0 - e));
+  };
+  if (mean_r2 >= 0.49 * r2) return 10.0 * threshold;  // as flat as a uniform disc: no bound
+  double lo = 1e-6 * threshold, hi = 100.0 * threshold;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (moment(mid) < mean_r2 ? lo : hi) = mid;
+  }
+  return std::sqrt(lo * hi);
 }
 
 namespace {
@@ -48,8 +71,10 @@ PoseInformation7 ReprojectionInformation(size_t n, const std::vector<Eigen::Vect
     ++used;
   }
   if (used < 4) return PoseInformation7::Zero();
-  const double dof = std::max(1, 2 * used - 6);
-  const double sigma2 = std::max(sum_r2 / dof, options.min_sigma * options.min_sigma);
+  // Mean squared residual norm with the 6 fitted parameters taken out, then the truncation.
+  const double mean_r2 = 2.0 * sum_r2 / std::max(1, 2 * used - 6);
+  const double sigma = TruncatedResidualSigma(mean_r2, options.inlier_threshold);
+  const double sigma2 = std::max(sigma * sigma, options.min_sigma * options.min_sigma);
   return jtj / sigma2;
 }
 

@@ -43,7 +43,7 @@ struct VerifyOptions {
   double information_min_sigma_px = 0.5;
   // The PoseInformationOptions for a pair with this (mean) focal length, pixels.
   PoseInformationOptions InformationOptions(double focal_px) const {
-    return PoseInformationOptions{information_min_sigma_px / focal_px};
+    return PoseInformationOptions{information_min_sigma_px / focal_px, threshold_px / focal_px};
   }
   void Check() const;
 };

@@ -24,8 +24,18 @@ using PoseInformation7 = Eigen::Matrix<double, 7, 7>;
 
 struct PoseInformationOptions {
   double min_sigma = 0.5 / 500.0;  // floor of the residual sigma, normalised units (0.5 px at f=500)
+  // The inliers were selected by |r| <= inlier_threshold (normalised units; 0 = not truncated):
+  // their mean squared residual then underestimates the noise (2D Gaussian noise of sigma 1.4 px
+  // cut at 2 px keeps residuals with 0.42 x its second moment), so sigma is solved from the
+  // truncated second moment E[r^2 | r < R] = 2 sigma^2 (1 - x e^-x / (1 - e^-x)), x = R^2 / 2
+  // sigma^2.
+  double inlier_threshold = 0.0;
   void Check() const;
 };
+
+// The per-axis sigma of 2D Gaussian residuals whose radius was cut at `threshold` (0: not cut)
+// and whose mean squared norm is `mean_r2` (all in the same units). Exposed for its test.
+double TruncatedResidualSigma(double mean_r2, double threshold);
 
 // PnP with the 3D points in the MATCH frame observed in the QUERY image (normalised coordinates
 // x = (X/Z, Y/Z)); `match_from_query` the verified pose. Points behind the query camera are
