@@ -10,6 +10,8 @@
 #include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/posegraph/g2o.h"
 
@@ -35,6 +37,8 @@ int RunOptimize(int argc, char** argv) {
   app.add_option("--threads", options.num_threads, "Ceres threads")
       ->check(IntegerAtLeast(1))
       ->capture_default_str();
+  bool quiet = false;
+  app.add_flag("--quiet", quiet, "No progress on stderr (reading, solving, one line per iteration)");
   Parse(app, argc, argv);
   CheckOutputFileFlag("--out", out);
 
@@ -50,7 +54,18 @@ int RunOptimize(int argc, char** argv) {
                     {"num_threads", "--threads"}},
                    [&] { options.Check(); });
 
+  // Progress on stderr: a large graph takes tens of seconds (one line per Levenberg-Marquardt
+  // iteration from the pose graph's log).
+  Timer timer;
+  if (!quiet) Logger().info("optimize: reading {}", in);
   PoseGraph graph = ReadG2o(in);
+  if (!quiet) {
+    Logger().info("optimize: {} vertices, {} edges read in {:.1f} s; solving (at most {} "
+                  "iterations)",
+                  graph.num_vertices(), graph.edges().size(), timer.ElapsedMs() / 1000.0,
+                  options.max_iterations);
+  }
+  options.log_progress = !quiet;
   const PoseGraphSummary summary = graph.Optimize(options);
   WriteFileAtomically(out, [&](std::ostream& os) { WriteG2o(os, graph); });
 

@@ -41,6 +41,26 @@ TEST(CliOptimize, SquareConvergesToKnownAnswer) {
   EXPECT_EQ(files, 2u);
 }
 
+// A large graph takes tens of seconds: progress goes to stderr (never stdout), --quiet silences it.
+TEST(CliOptimize, ProgressOnStderrQuietWithQuiet) {
+  const auto dir = TempDir();
+  std::ofstream(dir / "square.g2o") << kSquare;
+  const std::vector<std::string> args = {"optimize", "--g2o", (dir / "square.g2o").string(),
+                                         "--out", (dir / "out.g2o").string()};
+  const CliResult r = RunCli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("4 vertices, 4 edges read"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("solving"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("iter   0 cost"), std::string::npos) << r.err;  // one line per iteration
+  EXPECT_EQ(r.out.find("iter   0"), std::string::npos) << r.out;
+  std::vector<std::string> quiet = args;
+  quiet.push_back("--quiet");
+  const CliResult q = RunCli(quiet);
+  ASSERT_EQ(q.exit_code, 0) << q.err;
+  EXPECT_EQ(q.err, "");
+  EXPECT_NE(q.out.find("Termination:          converged"), std::string::npos) << q.out;
+}
+
 TEST(CliOptimize, BadInputExitsTwoWithLine) {
   const auto dir = TempDir();
   std::ofstream(dir / "bad.g2o") << "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0\n";
