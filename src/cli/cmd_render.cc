@@ -8,10 +8,12 @@
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
+#include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/synthetic/sequence.h"
 #include "sparseloop/synthetic/texture.h"
@@ -98,7 +100,8 @@ int RunRender(int argc, char** argv) {
       "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
   app.add_option("--out", out_dir, "output folder")->required();
   Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", out_dir, {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt"});
+  CheckOutputDirFlag("--out", out_dir,
+                     {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt", "render.json"});
 
   seq.num_threads = threads;
   seq.photometric_drift = !no_photometric;
@@ -188,6 +191,27 @@ int RunRender(int argc, char** argv) {
     if (raw->size() > gt.size()) raw->poses.resize(gt.size());
   }
 
+  // render.json: what was rendered, so a --start / --step slice is known from the folder itself
+  // (frame k of the folder is pose start + k * step of the trajectory).
+  const auto write_render_json = [&] {
+    nlohmann::json j = {{"command", "render"},
+                        {"world", world_name},
+                        {"trajectory", trajectory_path.empty() ? nlohmann::json(nullptr)
+                                                               : nlohmann::json(trajectory_path)},
+                        {"plan", trajectory_path.empty() && world_name == "aerial"
+                                     ? nlohmann::json(plan_name)
+                                     : nlohmann::json(nullptr)},
+                        {"start", start},
+                        {"step", step},
+                        {"frames", gt.size()},
+                        {"seed", seed},
+                        {"raw", raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(raw_path)},
+                        {"drift", drift_scale},
+                        {"photometric", photometric_scale},
+                        {"poses_only", poses_only}};
+    WriteFileAtomically(std::filesystem::path(out_dir) / "render.json",
+                        [&](std::ostream& os) { os << j.dump(2) << "\n"; });
+  };
   if (poses_only) {
     SL_CHECK_MSG(!raw, "--poses-only simulates the drift; it cannot be combined with --raw");
     const syn::DriftResult drift = syn::SimulateDrift(gt, seq.drift);
@@ -195,6 +219,7 @@ int RunRender(int argc, char** argv) {
     WriteTrajectory(std::filesystem::path(out_dir) / "poses_gt.txt", gt, TrajectoryFormat::kKitti);
     WriteTrajectory(std::filesystem::path(out_dir) / "poses_raw.txt", drift.raw,
                     TrajectoryFormat::kKitti);
+    write_render_json();
     std::cout << fmt::format("wrote poses_gt.txt and poses_raw.txt ({} poses) to {}\n", gt.size(),
                              out_dir);
     return 0;
@@ -208,6 +233,7 @@ int RunRender(int argc, char** argv) {
     }
   };
   const auto result = syn::WriteKittiSequence(out_dir, world, camera, gt, seq, raw, progress);
+  write_render_json();
   std::cout << fmt::format("wrote {} frames ({}x{}) to {} in {:.1f} s ({:.1f} frames/s)\n",
                            result.frames, camera.width, camera.height, out_dir, result.seconds,
                            result.frames_per_second);

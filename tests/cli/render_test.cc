@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "cli/cli_runner.h"
 #include "sparseloop/io/dataset.h"
@@ -88,6 +89,31 @@ TEST(RenderCli, PosesOnlyMatchesFullRenderAndDriftScales) {
                     "--out", (TempDir() / "x").string()})
                 .exit_code,
             2);
+}
+
+// A --start / --step slice is recorded in the folder (render.json), not only on stderr.
+TEST(RenderCli, StartSliceIsRecordedInRenderJson) {
+  for (const bool poses_only : {true, false}) {
+    SCOPED_TRACE(poses_only ? "--poses-only" : "full render");
+    const auto out = OutDir(poses_only ? "poses_only" : "full");
+    std::vector<std::string> args = {"render", "--world", "aerial", "--frames", poses_only ? "30" : "8",
+                                     "--start", "5", "--step", "2", "--seed", "7", "--out",
+                                     out.string()};
+    if (poses_only) args.push_back("--poses-only");
+    const CliResult r = RunCli(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::ifstream in(out / "render.json");
+    ASSERT_TRUE(in.good());
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j["start"].get<int>(), 5);
+    EXPECT_EQ(j["step"].get<int>(), 2);
+    EXPECT_EQ(j["seed"].get<int>(), 7);
+    EXPECT_EQ(j["world"].get<std::string>(), "aerial");
+    EXPECT_EQ(j["plan"].get<std::string>(), "circuit");
+    EXPECT_EQ(j["poses_only"].get<bool>(), poses_only);
+    // frames = poses written: (30 - 5) / 2 rounded up = 13; the full render 8 -> 2 poses.
+    EXPECT_EQ(j["frames"].get<size_t>(), ReadTrajectory(out / "poses_gt.txt").size());
+  }
 }
 
 TEST(RenderCli, BadArgumentsExit2) {
