@@ -143,6 +143,24 @@ int RunRun(int argc, char** argv) {
   summary["rejected_loops"] = rejected;
   summary["accepted_loops"] =
       std::count(result.loop_accepted.begin(), result.loop_accepted.end(), true);
+  // After the solve, each accepted loop against its own covariance (LoopResidualCheck).
+  nlohmann::json loop_checks = nlohmann::json::array();
+  size_t inconsistent = 0;
+  for (const LoopResidualCheck& c : result.optimizer.loop_checks) {
+    loop_checks.push_back({{"loop", c.loop},
+                           {"query", c.query_id},
+                           {"match", c.match_id},
+                           {"chi2", c.chi2},
+                           {"dof", c.dof},
+                           {"threshold", c.threshold},
+                           {"consistent", c.consistent},
+                           {"translation_error", c.translation_error},
+                           {"rotation_error_rad", c.rotation_error_rad},
+                           {"log_scale_error", c.log_scale_error}});
+    inconsistent += !c.consistent;
+  }
+  summary["loop_checks"] = loop_checks;
+  summary["inconsistent_loops"] = inconsistent;
   if (truth) {
     AddLoopTruthJson(summary, *truth, result.loop_accepted);
     // Loop precision / recall against GT revisits derived from the GT poses (same distance),
