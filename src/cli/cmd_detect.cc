@@ -35,7 +35,7 @@ namespace sparseloop::cli {
 namespace {
 
 // Every file `detect` writes into --out.
-const std::vector<std::string> kDetectOutputFiles = {"loops.csv", "summary.json"};
+const std::vector<std::string> kDetectOutputFiles = {"loops.csv", "summary.json", "frames.csv"};
 
 nlohmann::json Stats(std::vector<double> values) {
   if (values.empty()) return {{"median", 0.0}, {"p90", 0.0}, {"max", 0.0}};
@@ -108,7 +108,7 @@ int RunDetect(int argc, char** argv) {
 
   std::filesystem::create_directories(out_dir);
   const bool progress = isatty(fileno(stderr));
-  std::vector<LoopResult> loops;
+  std::vector<LoopResult> loops, frame_results;
   std::vector<double> t_extract, t_search, t_match, t_verify, t_total;
   size_t bytes = 0;
   Timer wall;
@@ -137,6 +137,7 @@ int RunDetect(int argc, char** argv) {
     t_verify.push_back(r.timings.verify_ms);
     t_total.push_back(r.timings.total_ms);
     if (r.detected()) loops.push_back(r);
+    frame_results.push_back(r);
     if (progress) {
       const double fps = (i + 1) / std::max(1e-9, wall.ElapsedMs() / 1000.0);
       std::fprintf(stderr, "\rdetect: frame %zu/%zu  %.1f frames/s  %zu loops", i + 1,
@@ -150,17 +151,19 @@ int RunDetect(int argc, char** argv) {
   const std::filesystem::path out(out_dir);
   WriteFileAtomically(out / "loops.csv", [&](std::ostream& os) {
     os << "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-          "scale,match_session\n";
+          "scale,match_session,query_image,match_image\n";
+    const ImageNames images = ImageNamesByFrame(dataset);
     for (const auto& l : loops) {
       const auto& p = l.match_from_query;
       os << fmt::format(
-          "{},{},{:.6f},{},{},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}\n",
+          "{},{},{:.6f},{},{},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}{}\n",
           l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), ToString(l.pose_kind),
           l.planar_alternative ? 1 : 0, p.rotation.x(), p.rotation.y(), p.rotation.z(),
           p.rotation.w(), p.translation.x(), p.translation.y(), p.translation.z(), p.scale,
-          l.match_session);
+          l.match_session, ImageColumns(l, images));
     }
   });
+  WriteFramesCsv(out / "frames.csv", frame_results);
   nlohmann::json summary = {
       {"command", "detect"},
       {"dataset", dataset_spec},
@@ -180,6 +183,7 @@ int RunDetect(int argc, char** argv) {
         {"verify", Stats(t_verify)},
         {"total", Stats(t_total)}}},
       {"total_ms", wall_ms},
+      {"status_counts", StatusCountsJson(frame_results)},
       {"cross_session_loops",
        std::count_if(loops.begin(), loops.end(),
                      [](const LoopResult& l) { return l.match_session != 0; })},
@@ -198,6 +202,20 @@ int RunDetect(int argc, char** argv) {
   std::cout << fmt::format("{} keyframes, {} loops, {:.0f} bytes/keyframe, {:.1f} ms/keyframe\n",
                            dataset.frames.size(), loops.size(),
                            double(bytes) / dataset.frames.size(), wall_ms / dataset.frames.size());
+  // Why nothing (or little) was found: the status of every frame, counted.
+  std::string statuses;
+  for (const auto& [status, count] : summary["status_counts"].items()) {
+    if (count.get<int>() > 0) statuses += fmt::format("{}{} {}", statuses.empty() ? "" : ", ", status, count.get<int>());
+  }
+  std::cout << "frames by status: " << statuses << " (per frame: frames.csv)\n";
+  if (loops.empty() && summary["status_counts"]["no_candidates"].get<int>() ==
+                           static_cast<int>(frame_results.size())) {
+    std::cout << fmt::format(
+        "no frame had a candidate to match: the {} frames just before each query are never "
+        "searched (--exclude-recent {}){}\n",
+        options.search.exclude_recent, options.search.exclude_recent,
+        have_poses ? ", and the search area / --min-path-ratio left none" : "");
+  }
   for (const auto& l : loops)
     std::cout << fmt::format("loop {} -> {}{}  inliers {}  score {:.3f}\n", l.query_id, l.match_id,
                              l.match_session ? fmt::format(" (session {})", l.match_session) : "",

@@ -60,6 +60,10 @@ void PrintStats(const std::string& name, const ErrorStatistics& s, const std::st
       Num(s.mean), Num(s.median), Num(s.std), Num(s.min), Num(s.max), unit, s.count);
 }
 
+void PrintTrajectoryTable(const TrajectoryEvaluation& e, const EvaluationOptions& options,
+                          const std::string& est_path, const Trajectory& est,
+                          const std::string& gt_path, const Trajectory& gt);
+
 }  // namespace
 
 int RunEval(int argc, char** argv) {
@@ -72,8 +76,8 @@ int RunEval(int argc, char** argv) {
   EvaluationOptions options;
   GtLoopOptions gt_loop_options;
   LoopEvalOptions loop_options;
-  app.add_option("--gt", gt_path, "ground-truth trajectory file")->required();
-  app.add_option("--est", est_path, "estimated trajectory file")->required();
+  app.add_option("--gt", gt_path, "ground-truth trajectory file (with --est: trajectory metrics)");
+  app.add_option("--est", est_path, "estimated trajectory file (needs --gt)");
   app.add_option("--gt-format", gt_format, "auto|tum|kitti|euroc|positions")->capture_default_str();
   app.add_option("--est-format", est_format, "auto|tum|kitti|euroc|positions")
       ->capture_default_str();
@@ -115,9 +119,19 @@ int RunEval(int argc, char** argv) {
   }
   SL_CHECK_MSG(loops_path.empty() || !gt_loops_path.empty() || !derive_loops.empty(),
                "--loops needs ground-truth loops: give --gt-loops FILE or --derive-loops DIST,GAP");
+  // Trajectory metrics need --gt and --est; loops alone need --loops and --gt-loops.
+  const bool trajectories = !est_path.empty();
+  SL_CHECK_MSG(!trajectories || !gt_path.empty(), "--est needs --gt (the ground truth to compare with)");
+  SL_CHECK_MSG(trajectories || !loops_path.empty(),
+               "nothing to evaluate: give --gt and --est (trajectory metrics), and/or --loops with "
+               "--gt-loops (loop precision/recall; without trajectories)");
+  SL_CHECK_MSG(derive_loops.empty() || !gt_path.empty(),
+               "--derive-loops needs --gt (GT loops are derived from its poses)");
 
-  const Trajectory gt = ReadTrajectory(gt_path, ParseTrajectoryFormat(gt_format));
-  const Trajectory est = ReadTrajectory(est_path, ParseTrajectoryFormat(est_format));
+  const Trajectory gt =
+      gt_path.empty() ? Trajectory() : ReadTrajectory(gt_path, ParseTrajectoryFormat(gt_format));
+  const Trajectory est =
+      trajectories ? ReadTrajectory(est_path, ParseTrajectoryFormat(est_format)) : Trajectory();
   if (associate == "auto") {
     options.association.method = gt.has_timestamps && est.has_timestamps
                                      ? AssociationMethod::kTimestamp
@@ -137,8 +151,9 @@ int RunEval(int argc, char** argv) {
                      if (!derive_loops.empty()) gt_loop_options.Check();
                    });
 
-  const TrajectoryEvaluation e = EvaluateTrajectory(gt, est, options);
-  if (e.status == EvaluationStatus::kNoAssociation) {
+  const TrajectoryEvaluation e =
+      trajectories ? EvaluateTrajectory(gt, est, options) : TrajectoryEvaluation();
+  if (trajectories && e.status == EvaluationStatus::kNoAssociation) {
     const std::string how =
         options.association.method == AssociationMethod::kTimestamp
             ? fmt::format("by timestamp within --max-dt {} s", options.association.max_dt)
@@ -152,7 +167,7 @@ int RunEval(int argc, char** argv) {
   std::optional<std::vector<LoopPair>> gt_loops;
   if (!gt_loops_path.empty()) {
     // Pairs must name frames of --gt: ids past its last frame are an error with the line.
-    LoopPairReadOptions read_options;
+    LoopPairReadOptions read_options;  // without --gt: no range to check
     for (const StampedPose& p : gt.poses)
       read_options.num_frames = std::max(read_options.num_frames.value_or(0), p.frame + 1);
     gt_loops = ReadLoopPairs(gt_loops_path, read_options);
@@ -163,6 +178,36 @@ int RunEval(int argc, char** argv) {
     loops = EvaluateLoops(ReadDetections(loops_path), *gt_loops, loop_options);
 
   // ---- table ----
+  if (trajectories) PrintTrajectoryTable(e, options, est_path, est, gt_path, gt);
+  if (gt_loops) std::cout << fmt::format("GT loops     {} pairs\n", gt_loops->size());
+  if (loops) {
+    std::cout << fmt::format(
+        "Loops        {} detections, {} correct, precision {}  recall {}  recall@100%P {}\n",
+        loops->num_detections, loops->true_positives, Num(loops->precision), Num(loops->recall),
+        Num(loops->recall_at_100p));
+  }
+
+  if (!json_path.empty()) {
+    nlohmann::json j = trajectories ? ToJson(e) : nlohmann::json::object();
+    j["gt_file"] = gt_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(gt_path);
+    j["est_file"] = trajectories ? nlohmann::json(est_path) : nlohmann::json(nullptr);
+    if (trajectories) j["association"] = ToString(options.association.method);
+    j["loops_file"] = loops_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(loops_path);
+    j["gt_loops_file"] =
+        gt_loops_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(gt_loops_path);
+    j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
+    AddLoopKeys(j, loops ? &*loops : nullptr);
+    WriteFileAtomically(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+    std::cout << "wrote " << json_path << "\n";
+  }
+  return 0;
+}
+
+namespace {
+
+void PrintTrajectoryTable(const TrajectoryEvaluation& e, const EvaluationOptions& options,
+                          const std::string& est_path, const Trajectory& est,
+                          const std::string& gt_path, const Trajectory& gt) {
   std::cout << fmt::format("estimate     {} ({} poses{})\n", est_path, est.size(),
                            est.has_rotation ? "" : ", positions only");
   std::cout << fmt::format("ground truth {} ({} poses)\n", gt_path, gt.size());
@@ -194,26 +239,9 @@ int RunEval(int argc, char** argv) {
       }
     }
   }
-  if (gt_loops) std::cout << fmt::format("GT loops     {} pairs\n", gt_loops->size());
-  if (loops) {
-    std::cout << fmt::format(
-        "Loops        {} detections, {} correct, precision {}  recall {}  recall@100%P {}\n",
-        loops->num_detections, loops->true_positives, Num(loops->precision), Num(loops->recall),
-        Num(loops->recall_at_100p));
-  }
-
-  if (!json_path.empty()) {
-    nlohmann::json j = ToJson(e);
-    j["gt_file"] = gt_path;
-    j["est_file"] = est_path;
-    j["association"] = ToString(options.association.method);
-    j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
-    AddLoopKeys(j, loops ? &*loops : nullptr);
-    WriteFileAtomically(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
-    std::cout << "wrote " << json_path << "\n";
-  }
-  return 0;
 }
+
+}  // namespace
 
 SPARSELOOP_REGISTER_COMMAND("eval",
                             "trajectory metrics (ATE/RPE/KITTI) and loop P/R vs ground truth",

@@ -28,7 +28,7 @@ namespace {
 // Every file `run` writes into --out.
 const std::vector<std::string> kRunOutputFiles = {
     "trajectory.txt", "trajectory_kitti.txt", "poses_raw.txt", "poses_gt.txt", "loops.csv",
-    "timings.csv",    "pr_curve.csv",         "gt_loops.txt",  "summary.json"};
+    "timings.csv",    "pr_curve.csv",         "gt_loops.txt",  "summary.json", "frames.csv"};
 
 int RunRun(int argc, char** argv) {
   CLI::App app{"Detect loops, optimise the pose graph and write the corrected trajectory"};
@@ -46,8 +46,22 @@ int RunRun(int argc, char** argv) {
   app.add_option("--gt-loop-distance", gt_loop_distance,
                  "A detected loop is 'correct' when the GT positions of its frames are closer "
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
+  std::optional<int64_t> gt_min_gap;
+  std::optional<double> gt_min_path;
+  app.add_option("--gt-min-gap", gt_min_gap,
+                 "GT revisits (loop recall): at least this many frames between the two frames "
+                 "(default: the detector's search.exclude_recent, at least 1)")
+      ->check(IntegerAtLeast(1));
+  app.add_option("--gt-min-path", gt_min_path,
+                 "GT revisits (loop recall): at least this much GT path between the two frames, "
+                 "so that driving on is not a revisit (GT units; default: 4 x the GT loop "
+                 "distance; 0: off)");
   Parse(app, argc, argv);
   CheckOutputDirFlag("--out", flags.out, kRunOutputFiles);
+  if (gt_min_path && !(std::isfinite(*gt_min_path) && *gt_min_path >= 0.0)) {
+    throw std::invalid_argument(
+        fmt::format("--gt-min-path must be a path length >= 0, got {}", *gt_min_path));
+  }
   // Checked now, not after the run: -1 (not given) means the default.
   if (gt_loop_distance != -1.0 && !(std::isfinite(gt_loop_distance) && gt_loop_distance > 0.0)) {
     throw std::invalid_argument(
@@ -117,9 +131,11 @@ int RunRun(int argc, char** argv) {
     // In-session loops first (accepted / correct known), then loops into earlier map sessions.
     std::vector<LoopResult> rows = result.loops;
     rows.insert(rows.end(), result.cross_session_loops.begin(), result.cross_session_loops.end());
-    WriteLoopsCsv(out / "loops.csv", rows, &result.loop_accepted, truth ? &*truth : nullptr);
+    WriteLoopsCsv(out / "loops.csv", rows, &result.loop_accepted, truth ? &*truth : nullptr,
+                  ImageNamesByFrame(dataset));
   }
   WriteTimingsCsv(out / "timings.csv", result.frame_results);
+  WriteFramesCsv(out / "frames.csv", result.frame_results);
 
   nlohmann::json summary =
       DetectionSummaryJson(result.frame_results, result.loops.size(), result.bytes_per_keyframe);
@@ -167,7 +183,8 @@ int RunRun(int argc, char** argv) {
     // over every query frame that has a GT partner.
     GtLoopOptions gl;
     gl.distance = truth->threshold;
-    gl.min_gap = std::max(1, options.detector.search.exclude_recent);
+    gl.min_gap = gt_min_gap.value_or(std::max(1, options.detector.search.exclude_recent));
+    gl.min_path = gt_min_path.value_or(4.0 * gl.distance);
     const std::vector<LoopPair> gt_pairs = DeriveGtLoops(*gt, gl);
     std::vector<Detection> detections;
     for (const LoopResult& l : result.loops)
@@ -180,10 +197,14 @@ int RunRun(int argc, char** argv) {
     for (auto& [key, value] : loop_eval.items()) {
       summary[key == "loops" ? "loop_eval" : key] = value;
     }
+    summary["gt_revisits"] = {{"distance", gl.distance},
+                              {"min_gap", gl.min_gap},
+                              {"min_path", gl.min_path},
+                              {"pairs", gt_pairs.size()}};
     WritePrCurveCsv(out / "pr_curve.csv", pr);
     WriteFileAtomically(out / "gt_loops.txt", [&](std::ostream& os) {
       os << "# query match: GT revisits (distance < " << gl.distance << ", gap >= " << gl.min_gap
-         << " frames)\n";
+         << " frames, GT path between >= " << gl.min_path << ")\n";
       for (const LoopPair& p : gt_pairs) os << p.query << ' ' << p.match << '\n';
     });
   }

@@ -238,11 +238,48 @@ void ProgressLine::Finish() {
   if (enabled_) std::fprintf(stderr, "\n");
 }
 
+ImageNames ImageNamesByFrame(const Dataset& dataset) {
+  ImageNames names;
+  for (const DatasetFrame& f : dataset.frames) names[f.index] = f.image_path.filename().string();
+  return names;
+}
+
+std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
+  const auto name = [&](int64_t frame) {
+    const auto it = images.find(frame);
+    return it == images.end() ? std::string() : it->second;
+  };
+  return "," + name(loop.query_id) + "," + (loop.match_session == 0 ? name(loop.match_id) : "");
+}
+
+void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
+  WriteFileAtomically(path, [&](std::ostream& os) {
+    os << "frame,status,candidates,matches,inliers,match\n";
+    for (const LoopResult& r : results) {
+      os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ',' << r.matches
+         << ',' << r.inliers << ',' << r.match_id << '\n';
+    }
+  });
+}
+
+nlohmann::json StatusCountsJson(const std::vector<LoopResult>& results) {
+  std::map<std::string, int> counts;
+  for (LoopStatus s :
+       {LoopStatus::kDetected, LoopStatus::kSkipped, LoopStatus::kNoFeatures,
+        LoopStatus::kNoCandidates, LoopStatus::kTooFewMatches, LoopStatus::kTooFewInliers,
+        LoopStatus::kRejectedByConsistency, LoopStatus::kRejectedByTemporal}) {
+    counts[ToString(s)] = 0;
+  }
+  for (const auto& r : results) counts[ToString(r.status)]++;
+  return counts;
+}
+
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
-                   const std::vector<bool>* accepted, const LoopTruth* truth) {
+                   const std::vector<bool>* accepted, const LoopTruth* truth,
+                   const ImageNames& images) {
   WriteFileAtomically(path, [&](std::ostream& os) {
     os << "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
-          "qz,qw,tx,ty,tz,scale,match_session\n";
+          "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image\n";
     os << std::setprecision(10);
     for (size_t i = 0; i < loops.size(); ++i) {
       const LoopResult& l = loops[i];
@@ -257,7 +294,7 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
         os << (*truth->correct[i] ? 1 : 0);
       os << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ','
          << t.y() << ',' << t.z() << ',' << l.match_from_query.scale << ',' << l.match_session
-         << '\n';
+         << ImageColumns(l, images) << '\n';
     }
   });
 }
@@ -289,9 +326,7 @@ nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size
   j["keyframes"] = results.size();
   j["loops"] = loops;
   j["bytes_per_keyframe"] = bytes_per_keyframe;
-  std::map<std::string, int> counts;
-  for (const auto& r : results) counts[ToString(r.status)]++;
-  j["status_counts"] = counts;
+  j["status_counts"] = StatusCountsJson(results);
   std::map<std::string, std::vector<double>> stages;
   for (const auto& r : results) {
     stages["extract"].push_back(r.timings.extract_ms);

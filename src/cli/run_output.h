@@ -3,6 +3,7 @@
 // (loops.csv, timings.csv, summary.json fields). Formatting only; the algorithms live in the
 // library.
 #include <cstdio>
+#include <map>
 #include <filesystem>
 #include <optional>
 #include <ostream>
@@ -84,8 +85,20 @@ class ProgressLine {
 // ty,tz,scale,match_session (planar_alternative 0/1: LoopResult::planar_alternative; accepted /
 // correct are empty when unknown, including rows past the end of
 // `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session).
+// Last two columns query_image, match_image: the frames' image file names (no folder) from
+// `images` (frame index -> name; empty when unknown, e.g. a match in an earlier map session).
+using ImageNames = std::map<int64_t, std::string>;
+ImageNames ImageNamesByFrame(const Dataset& dataset);
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
-                   const std::vector<bool>* accepted, const LoopTruth* truth);
+                   const std::vector<bool>* accepted, const LoopTruth* truth,
+                   const ImageNames& images);
+// The image name columns of one loops.csv row: ",query_image,match_image".
+std::string ImageColumns(const LoopResult& loop, const ImageNames& images);
+// frames.csv: why each processed frame did or did not close a loop, one row per frame:
+// frame,status,candidates,matches,inliers,match (match -1 when no candidate was matched).
+void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results);
+// {"status": count} over `results` (every status name, 0 included).
+nlohmann::json StatusCountsJson(const std::vector<LoopResult>& results);
 // timings.csv: one row per processed keyframe: keyframe,status,extract_ms,search_ms,match_ms,
 // verify_ms,total_ms (only millisecond columns besides the first two; report.py plots each).
 void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr);

@@ -22,6 +22,8 @@ void GtLoopOptions::Check() const {
   SL_CHECK_MSG(min_gap >= 1, "GT loop min_gap must be >= 1 frame, got {}", min_gap);
   SL_CHECK_MSG(max_view_angle_deg > 0.0 && max_view_angle_deg <= 180.0,
                "GT loop max_view_angle_deg must be in (0, 180], got {}", max_view_angle_deg);
+  SL_CHECK_MSG(std::isfinite(min_path) && min_path >= 0.0, "GT loop min_path must be >= 0, got {}",
+               min_path);
 }
 
 std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& options) {
@@ -37,6 +39,8 @@ std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& o
     pos[i] = gt.poses[i].world_from_cam.translation;
     view[i] = gt.poses[i].world_from_cam.rotation * Eigen::Vector3d::UnitZ();
   }
+  std::vector<double> path(n, 0.0);  // GT path length from the first pose
+  for (size_t i = 1; i < n; ++i) path[i] = path[i - 1] + (pos[i] - pos[i - 1]).norm();
   const double dist_sq = options.distance * options.distance;
   std::vector<LoopPair> out;
   for (size_t i = 0; i < n; ++i) {
@@ -45,6 +49,7 @@ std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& o
       const int64_t match = gt.poses[j].frame;
       if (query - match < options.min_gap) continue;
       if ((pos[i] - pos[j]).squaredNorm() >= dist_sq) continue;
+      if (std::abs(path[i] - path[j]) < options.min_path) continue;
       // cos(angle) >= cos(max) <=> angle <= max; clamp for rounding.
       if (check_angle && std::clamp(view[i].dot(view[j]), -1.0, 1.0) < min_cos) continue;
       out.push_back({query, match});

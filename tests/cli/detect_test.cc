@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -35,7 +36,7 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   std::getline(lines, header);
   EXPECT_EQ(header,
             "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-            "scale,match_session");
+            "scale,match_session,query_image,match_image");
   int loops = 0, planar = 0;
   bool ring = false;
   for (std::string line; std::getline(lines, line);) {
@@ -45,7 +46,9 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
     std::vector<std::string> fields;
     std::istringstream row(line);
     for (std::string f; std::getline(row, f, ',');) fields.push_back(f);
-    ASSERT_EQ(fields.size(), 16u) << line;
+    ASSERT_EQ(fields.size(), 18u) << line;
+    EXPECT_EQ(fields[16], fmt::format("{:04d}.jpg", q));  // the images' file names
+    EXPECT_EQ(fields[17], fmt::format("{:04d}.jpg", m));
     EXPECT_EQ(fields[4], "detected");
     // No depths: the essential matrix's unit direction, or the local map's PnP / Sim(3).
     EXPECT_TRUE(fields[5] == "se3_unit_translation" || fields[5] == "se3_metric" ||

@@ -1,11 +1,13 @@
 // What `run` / `detect` write about a run (docs/FORMATS.md): summary.json's loop checks, and
 // the per-frame status.
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <set>
 #include <string>
 #include <utility>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -78,6 +80,129 @@ TEST(CliRunSummary, LoopChecksListEveryAcceptedLoop) {
     inconsistent += !c["consistent"].get<bool>();
   }
   EXPECT_EQ(summary["inconsistent_loops"].get<size_t>(), inconsistent);
+}
+
+// The first `frames` frames of the rendered sequence, without GT (no poses: global search).
+fs::path ShortSequence(const fs::path& dir, int frames) {
+  const fs::path& seq = RenderedLoopSequence();
+  const fs::path copy = dir / "short";
+  fs::create_directories(copy / "image_0");
+  for (int i = 0; i < frames; ++i) {
+    const std::string name = fmt::format("{:06d}.png", i);
+    fs::create_symlink(seq / "image_0" / name, copy / "image_0" / name);
+  }
+  fs::copy_file(seq / "times.txt", copy / "times.txt");
+  fs::copy_file(seq / "calib.txt", copy / "calib.txt");
+  return copy;
+}
+
+// A short sequence finds nothing with the default exclude_recent (10): detect says why, per frame
+// (frames.csv) and counted (summary.json status_counts, stdout), and --exclude-recent fixes it.
+TEST(CliRunSummary, DetectSaysWhyNothingWasFound) {
+  const auto dir = TempDir();
+  const fs::path seq = ShortSequence(dir, 10);
+  const CliResult r =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--out", (dir / "a").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto rows = ReadCsv(dir / "a" / "frames.csv");
+  ASSERT_EQ(rows.size(), 10u);
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.at("status"), "no_candidates");
+    EXPECT_EQ(row.at("candidates"), "0");
+    EXPECT_EQ(row.at("match"), "-1");
+    for (const char* column : {"frame", "matches", "inliers"}) EXPECT_TRUE(row.count(column));
+  }
+  const auto summary = ReadJson(dir / "a" / "summary.json");
+  EXPECT_EQ(summary["status_counts"]["no_candidates"].get<int>(), 10);
+  EXPECT_EQ(summary["status_counts"]["detected"].get<int>(), 0);
+  EXPECT_NE(r.out.find("no_candidates 10"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--exclude-recent 10"), std::string::npos) << r.out;
+
+  const CliResult fixed =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--exclude-recent", "2",
+              "--min-path-ratio", "0", "--out", (dir / "b").string()});
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.err;
+  const auto fixed_summary = ReadJson(dir / "b" / "summary.json");
+  EXPECT_EQ(fixed_summary["config"]["search"]["exclude_recent"].get<int>(), 2);
+  EXPECT_EQ(fixed_summary["config"]["min_path_ratio"].get<double>(), 0.0);
+  EXPECT_LT(fixed_summary["status_counts"]["no_candidates"].get<int>(), 10);
+  int with_candidates = 0;
+  for (const auto& row : ReadCsv(dir / "b" / "frames.csv"))
+    with_candidates += std::stoi(row.at("candidates")) > 0;
+  EXPECT_EQ(with_candidates, 10 - fixed_summary["status_counts"]["no_candidates"].get<int>());
+}
+
+// loops.csv carries the images' file names in two columns appended at the end; `run` writes
+// frames.csv too, and its status counts are summary.json's.
+TEST(CliRunSummary, LoopsCsvEndsWithImageNamesAndRunWritesFramesCsv) {
+  const fs::path& out = RunOnRenderedSequence();
+  std::ifstream in(out / "loops.csv");
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header,
+            "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
+            "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image");
+  const auto loops = ReadCsv(out / "loops.csv");
+  ASSERT_FALSE(loops.empty());
+  for (const auto& row : loops) {
+    EXPECT_EQ(row.at("query_image"), fmt::format("{:06d}.png", std::stoi(row.at("query"))));
+    EXPECT_EQ(row.at("match_image"), fmt::format("{:06d}.png", std::stoi(row.at("match"))));
+  }
+  const auto summary = ReadJson(out / "summary.json");
+  const auto frames = ReadCsv(out / "frames.csv");
+  EXPECT_EQ(frames.size(), summary["keyframes"].get<size_t>());
+  std::map<std::string, int> counts;
+  for (const auto& row : frames) counts[row.at("status")]++;
+  for (const auto& [status, count] : summary["status_counts"].items())
+    EXPECT_EQ(counts[status], count.get<int>()) << status;
+}
+
+// `eval` scores loops without trajectories, and agrees with `run`'s own numbers.
+TEST(CliRunSummary, EvalScoresLoopsWithoutTrajectories) {
+  const fs::path& out = RunOnRenderedSequence();
+  const auto dir = TempDir();
+  const CliResult r = RunCli({"eval", "--loops", (out / "loops.csv").string(), "--gt-loops",
+                              (out / "gt_loops.txt").string(), "--json",
+                              (dir / "m.json").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto metrics = ReadJson(dir / "m.json");
+  const auto summary = ReadJson(out / "summary.json");
+  EXPECT_EQ(metrics["loop_precision"], summary["loop_precision"]);
+  EXPECT_EQ(metrics["loop_recall"], summary["loop_recall"]);
+  EXPECT_TRUE(metrics["ate_rmse_m"].is_null() || !metrics.contains("ate_rmse_m"));
+  const CliResult nothing = RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string()});
+  EXPECT_EQ(nothing.exit_code, 2);
+  EXPECT_NE(nothing.err.find("nothing to evaluate"), std::string::npos) << nothing.err;
+  EXPECT_EQ(RunCli({"eval", "--est", (out / "trajectory.txt").string()}).exit_code, 2);
+}
+
+// run's loop recall counts revisits, not driving on: GT pairs need GT path between the frames
+// (default 4 x the GT loop distance); --gt-min-path 0 --gt-min-gap 1 counts consecutive frames.
+TEST(CliRunSummary, GtRevisitsNeedPathBetweenTheFrames) {
+  const fs::path& seq = RenderedLoopSequence();
+  const auto dir = TempDir();
+  // 40 m: the sequence's frames are ~18 m apart, so neighbours are within the GT loop distance.
+  const auto run = [&](const std::string& name, std::vector<std::string> extra) {
+    std::vector<std::string> args = {"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                                     (seq / "poses_raw.txt").string(), "--gt-loop-distance", "40",
+                                     "--out", (dir / name).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const CliResult r = RunCli(args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return ReadJson(dir / name / "summary.json");
+  };
+  const auto strict = run("default", {});
+  EXPECT_DOUBLE_EQ(strict["gt_revisits"]["min_path"].get<double>(), 160.0);
+  const auto loose = run("loose", {"--gt-min-path", "0", "--gt-min-gap", "1"});
+  EXPECT_EQ(loose["gt_revisits"]["min_gap"].get<int>(), 1);
+  EXPECT_GT(loose["gt_revisits"]["pairs"].get<size_t>(),
+            strict["gt_revisits"]["pairs"].get<size_t>() + 30);  // every neighbouring pair
+  EXPECT_LT(loose["loop_recall"].get<double>(), strict["loop_recall"].get<double>());
+  EXPECT_EQ(RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                    (seq / "poses_raw.txt").string(), "--gt-min-path", "-1", "--out",
+                    (dir / "bad").string()})
+                .exit_code,
+            2);
 }
 
 }  // namespace

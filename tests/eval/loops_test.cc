@@ -1,5 +1,6 @@
 #include "sparseloop/eval/loops.h"
 
+#include <algorithm>
 #include <fstream>
 #include <numbers>
 
@@ -159,6 +160,31 @@ TEST(DeriveGtLoops, HandMadeKnownAnswers) {
   EXPECT_THROW(DeriveGtLoops(t, options), std::invalid_argument);
   options.max_view_angle_deg = 180.0;
   EXPECT_EQ(DeriveGtLoops(t, options).size(), 2u);
+}
+
+// Driving down a straight street, frames 3 m apart are within 4 m and 3 frames apart: not a
+// revisit. min_path keeps only pairs with enough GT path between them.
+TEST(DeriveGtLoops, MinPathExcludesTheSameStretchOfDriving) {
+  Trajectory t;
+  for (int i = 0; i <= 11; ++i) {
+    StampedPose p;
+    p.frame = i;
+    p.timestamp = i;
+    // Frames 0..10 along x every 1 m, frame 11 back at (5, 0.5): path 10 + |(-5, 0.5)|.
+    p.world_from_cam.translation =
+        i <= 10 ? Eigen::Vector3d(i, 0, 0) : Eigen::Vector3d(5, 0.5, 0);
+    t.poses.push_back(p);
+  }
+  GtLoopOptions options;
+  options.distance = 4.0;
+  options.min_gap = 3;
+  const auto all = DeriveGtLoops(t, options);
+  EXPECT_EQ(std::count_if(all.begin(), all.end(), [](const LoopPair& p) { return p.query <= 10; }),
+            8);  // (3,0) .. (10,7): the same stretch of street
+  options.min_path = 12.0;  // frame 11 has 15.02 - k metres of path back to frame k
+  EXPECT_EQ(DeriveGtLoops(t, options), (std::vector<LoopPair>{{11, 2}, {11, 3}}));
+  options.min_path = -1.0;
+  EXPECT_THROW(DeriveGtLoops(t, options), std::invalid_argument);
 }
 
 TEST(ReadDetections, ParsesColumnsByHeaderName) {

@@ -31,6 +31,11 @@ struct GtLoopOptions {
   double distance = 5.0;              // metres (gt units); pairs closer than this, > 0
   int64_t min_gap = 100;              // frames; minimum query - match frame difference, >= 1
   double max_view_angle_deg = 180.0;  // degrees in (0, 180]; 180 disables the check
+  // gt units; minimum length of the GT path between the two frames (summed over the poses in
+  // between, file order), >= 0; 0 disables. A revisit, not the same stretch of driving: two
+  // frames 8 m apart on a straight street have 8 m of path between them, a revisit of the place
+  // after a loop has the loop's length.
+  double min_path = 0.0;
   void Check() const;
 };
 
