@@ -1,22 +1,27 @@
 #!/usr/bin/env python3
 """One-page HTML report of a sparseloop run directory (headless, matplotlib Agg).
 
-Usage: report.py DIR [--false-loop-distance METRES]
+Usage: report.py DIR [--false-loop-distance METRES]   (default: summary.json gt_loop_distance)
 
 Reads (every file optional except at least one trajectory):
   poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
   poses_raw.txt                raw (drifting) input trajectory
   trajectory.txt               corrected trajectory written by `sparseloop run`
-  loops.csv                    accepted loops, header with at least "query,match" (+ "score")
+  loops.csv                    loops, header with at least "query,match" (+ "score", "accepted",
+                               "correct" as `sparseloop run` writes them); a malformed or
+                               truncated file is an error naming the line
   gt_loops.txt                 ground-truth loop pairs "i j" (for the P/R curve)
   pr_curve.csv                 precomputed "threshold,precision,recall" (used when present)
-  summary.json                 {"timing": {"stage": ms or {"mean_ms":...}}, ...}
+  summary.json                 thresholds and counts of the run (gt_loop_distance, loops,
+                               accepted_loops, accepted_loops_false, timing_ms {stage: {median}})
   timings.csv                  per-keyframe timings, one column per stage (ms)
-Writes DIR/report.html and DIR/report_*.png (PNGs beside the HTML).
+Writes DIR/report.html, one self-contained file (the plots embedded as base64 PNG data URIs), and
+DIR/report_*.png (the same plots).
 Trajectories are associated by frame index (KITTI) or nearest timestamp (TUM); raw and
 corrected are Sim(3)-aligned to GT (Umeyama) for plotting, as monocular scale is arbitrary.
 """
 import argparse
+import base64
 import csv
 import html
 import json
@@ -96,17 +101,41 @@ def top_view_axes(p):
     return ax
 
 
+class ReportError(Exception):
+    pass
+
+
 def read_loops(path):
+    """[(query, match, score, accepted, correct)]; accepted / correct are None when unknown.
+    Every row must have the header's column count: a truncated file is an error with the line."""
     loops = []
-    with open(path) as f:
-        reader = csv.DictReader(line for line in f if not line.startswith("#"))
-        for row in reader:
-            try:
-                q, m = int(float(row["query"])), int(float(row["match"]))
-            except (KeyError, ValueError):
-                continue
-            score = float(row["score"]) if row.get("score") not in (None, "") else float("nan")
-            loops.append((q, m, score))
+    with open(path, newline="") as f:
+        lines = f.read().split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    elif lines:
+        raise ReportError(f"{path}:{len(lines)}: expected a complete line (ending with a newline), "
+                          "got a truncated file")
+    if not lines:
+        return loops
+    header = next(csv.reader([lines[0]]))
+    if "query" not in header or "match" not in header:
+        raise ReportError(f"{path}:1: expected a header with query and match columns")
+    for number, line in enumerate(lines[1:], 2):
+        if not line or line.startswith("#"):
+            continue
+        fields = next(csv.reader([line]))
+        if len(fields) != len(header):
+            raise ReportError(f"{path}:{number}: expected {len(header)} columns, got "
+                              f"{len(fields)} (a truncated or foreign file)")
+        row = dict(zip(header, fields))
+        try:
+            q, m = int(row["query"]), int(row["match"])
+        except ValueError:
+            raise ReportError(f"{path}:{number}: expected integer query and match ids")
+        score = float(row["score"]) if row.get("score") not in (None, "") else float("nan")
+        flag = lambda k: None if row.get(k) in (None, "") else row[k] == "1"  # noqa: E731
+        loops.append((q, m, score, flag("accepted"), flag("correct")))
     return loops
 
 
@@ -124,11 +153,29 @@ def read_pairs(path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dir")
-    ap.add_argument("--false-loop-distance", type=float, default=10.0)
+    ap.add_argument("--false-loop-distance", type=float, default=None,
+                    help="GT distance beyond which a loop is false (default: summary.json's "
+                         "gt_loop_distance, else 10)")
     args = ap.parse_args()
+    try:
+        return make_report(args)
+    except ReportError as e:
+        print(f"report.py: {e}", file=sys.stderr)
+        return 2
+
+
+def make_report(args):
     d = args.dir
     fp = lambda name: os.path.join(d, name)  # noqa: E731
     sections, notes = [], []
+    summary = {}
+    if os.path.isfile(fp("summary.json")):
+        with open(fp("summary.json")) as f:
+            summary = json.load(f)
+    # The run's own threshold, so the report agrees with summary.json.
+    false_distance = args.false_loop_distance
+    if false_distance is None:
+        false_distance = float(summary.get("gt_loop_distance", 10.0))
 
     traj = {}
     for label, names in (("GT", ["poses_gt.txt", "poses.txt"]), ("raw", ["poses_raw.txt"]),
@@ -174,6 +221,12 @@ def main():
 
     # 1. Top view with loops.
     loops = read_loops(fp("loops.csv")) if os.path.isfile(fp("loops.csv")) else []
+    in_session = summary.get("loops")
+    if in_session is not None and os.path.isfile(fp("loops.csv")):
+        expected = int(in_session) + int(summary.get("cross_session_loops", 0))
+        if len(loops) != expected:
+            raise ReportError(f"{fp('loops.csv')}: expected {expected} loops (summary.json), got "
+                              f"{len(loops)}: the file is truncated or from another run")
     fig, ax = plt.subplots(figsize=(8, 7))
     colours = {"GT": "k", "raw": "tab:red", "corrected": "tab:blue"}
     if gt is not None:
@@ -181,7 +234,7 @@ def main():
     for label, (keys, p) in aligned.items():
         ax.plot(p[:, ax_idx[0]], p[:, ax_idx[1]], "-", color=colours[label], lw=1.0,
                 label=f"{label} (Sim3-aligned)" if gt is not None else label)
-    n_true = n_false = 0
+    n_true = n_false = n_rejected = 0
     if loops:
         base_label = "corrected" if "corrected" in aligned else ("GT" if gt is not None else None)
         if base_label == "GT":
@@ -201,22 +254,33 @@ def main():
             gt_lut = {int(k): i for i, k in enumerate(gt[0])}
         else:
             gt_lut = {i: i for i in range(len(gt[0]))}
-        for q, m, _ in loops:
-            if q not in lut or m not in lut:
+        for q, m, _, accepted, correct in loops:
+            if accepted is False:  # rejected by the pose graph: drawn as rejected
+                n_rejected += 1
+                if q in lut and m in lut:
+                    a, b = base_pos[lut[q]], base_pos[lut[m]]
+                    ax.plot([a[ax_idx[0]], b[ax_idx[0]]], [a[ax_idx[1]], b[ax_idx[1]]], ":",
+                            color="tab:grey", lw=1.0, alpha=0.9)
                 continue
             false = False
-            if gt_lut and q in gt_lut and m in gt_lut:
-                false = np.linalg.norm(gt[1][gt_lut[q]] - gt[1][gt_lut[m]]) > args.false_loop_distance
+            if correct is not None and args.false_loop_distance is None:
+                false = not correct  # the run's own verdict, at its threshold
+            elif gt_lut and q in gt_lut and m in gt_lut:
+                false = np.linalg.norm(gt[1][gt_lut[q]] - gt[1][gt_lut[m]]) > false_distance
+            n_false += false
+            n_true += not false
+            if q not in lut or m not in lut:
+                continue
             a, b = base_pos[lut[q]], base_pos[lut[m]]
             ax.plot([a[ax_idx[0]], b[ax_idx[0]]], [a[ax_idx[1]], b[ax_idx[1]]], "-",
                     color="tab:orange" if false else "tab:green", lw=1.5 if false else 0.8,
                     alpha=0.9)
-            n_false += false
-            n_true += not false
-        ax.plot([], [], "-", color="tab:green", label=f"accepted loops ({n_true})")
+        ax.plot([], [], "-", color="tab:green", label=f"accepted loops, correct ({n_true})")
         if gt_lut:
             ax.plot([], [], "-", color="tab:orange",
-                    label=f"false loops ({n_false}, GT dist > {args.false_loop_distance:g})")
+                    label=f"accepted loops, false ({n_false}, GT dist > {false_distance:g})")
+        if n_rejected:
+            ax.plot([], [], ":", color="tab:grey", label=f"rejected loops ({n_rejected})")
     ax.set_xlabel(f"{names[ax_idx[0]]} [m]")
     ax.set_ylabel(f"{names[ax_idx[1]]} [m]")
     ax.set_aspect("equal", adjustable="datalim")
@@ -226,8 +290,12 @@ def main():
     fig.tight_layout()
     fig.savefig(fp("report_topview.png"), dpi=90)
     plt.close(fig)
-    sections.append(("Top view", "report_topview.png",
-                     f"{len(loops)} accepted loops" + (f", {n_false} false" if gt is not None else "")))
+    caption = f"{len(loops)} loops, {n_true + n_false} accepted"
+    if n_rejected:
+        caption += f", {n_rejected} rejected by the pose graph"
+    if gt is not None:
+        caption += f"; {n_false} accepted loops false (GT distance > {false_distance:g})"
+    sections.append(("Top view", "report_topview.png", caption))
 
     # 2. Error along the trajectory.
     if errors:
@@ -261,16 +329,14 @@ def main():
                     except ValueError:  # a non-numeric column (e.g. status) is not a stage
                         continue
                     timing.setdefault(k, []).append(value)
-    summary = {}
-    if os.path.isfile(fp("summary.json")):
-        with open(fp("summary.json")) as f:
-            summary = json.load(f)
-    if not timing and isinstance(summary.get("timing"), dict):
-        for k, v in summary["timing"].items():
+    # summary.json timing_ms {stage: {median, p90, max, ...}} (ms per keyframe), as detect and
+    # run write it.
+    if not timing and isinstance(summary.get("timing_ms"), dict):
+        for k, v in summary["timing_ms"].items():
             if isinstance(v, (int, float)):
                 timing[k] = [float(v)]
             elif isinstance(v, dict):
-                val = v.get("mean_ms", v.get("mean", v.get("total_ms")))
+                val = v.get("median", v.get("mean"))
                 if isinstance(val, (int, float)):
                     timing[k] = [float(val)]
     if timing:
@@ -292,7 +358,7 @@ def main():
         plt.close(fig)
         sections.append(("Timing per stage", "report_timing.png",
                          "per keyframe (timings.csv)" if os.path.isfile(fp("timings.csv"))
-                         else "from summary.json"))
+                         else "median per keyframe, from summary.json timing_ms"))
 
     # 4. Precision / recall.
     curve = None
@@ -306,7 +372,7 @@ def main():
         ranked = sorted(loops, key=lambda l: -l[2] if not math.isnan(l[2]) else 0)
         tp = 0
         curve = []
-        for k, (q, m, _) in enumerate(ranked, 1):
+        for k, (q, m, *_) in enumerate(ranked, 1):
             tp += (q, m) in gt_pairs
             curve.append((tp / max(len(gt_queries), 1), tp / k))
     if curve:
@@ -335,8 +401,12 @@ def main():
                 f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
                 for k, v in flat.items()) + "</table>")
     for title, png, caption in sections:
+        # Embedded: report.html is one self-contained file.
+        with open(fp(png), "rb") as f:
+            data = base64.b64encode(f.read()).decode("ascii")
         body.append(f"<h2>{html.escape(title)}</h2><p>{html.escape(caption)}</p>"
-                    f"<img src=\"{png}\" alt=\"{html.escape(title)}\">")
+                    f"<img src=\"data:image/png;base64,{data}\" alt=\"{html.escape(title)} "
+                    f"({png})\">")
     for n in notes:
         body.append(f"<p><em>{html.escape(n)}</em></p>")
     page = ("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>sparseloop report</title>"

@@ -20,8 +20,8 @@ int RunReport(int argc, char** argv) {
   app.add_option("--script", script, "report.py to use (default: installed or source tree)");
   app.add_option("--python", python, "python interpreter (default: first with matplotlib)");
   app.add_option("--false-loop-distance", options.false_loop_distance,
-                 "GT distance (m) beyond which an accepted loop is drawn as false")
-      ->capture_default_str();
+                 "GT distance beyond which an accepted loop is drawn as false (default: the "
+                 "run's own, summary.json gt_loop_distance; else 10)");
   Parse(app, argc, argv);
   CheckNamingFlags({{"false_loop_distance", "--false-loop-distance"}}, [&] { options.Check(); });
   options.script = script;
@@ -29,7 +29,7 @@ int RunReport(int argc, char** argv) {
   const auto result = synthetic::MakeReport(dir, options);
   if (result.status != synthetic::ReportResult::Status::kOk) {
     std::cerr << "sparseloop report: " << result.message << "\n";
-    return result.status == synthetic::ReportResult::Status::kScriptFailed ? 1 : 2;
+    return result.status == synthetic::ReportResult::Status::kScriptFailed ? 1 : 2;  // kBadInput: 2
   }
   std::cout << result.html.string() << "\n";
   return 0;

@@ -17,8 +17,8 @@ namespace sparseloop::synthetic {
 namespace fs = std::filesystem;
 
 void ReportOptions::Check() const {
-  SL_CHECK_MSG(false_loop_distance > 0.0, "false_loop_distance must be > 0, got {}",
-               false_loop_distance);
+  SL_CHECK_MSG(false_loop_distance >= 0.0, "false_loop_distance must be > 0, got {}",
+               false_loop_distance);  // 0: summary.json's
 }
 
 namespace {
@@ -99,9 +99,17 @@ ReportResult MakeReport(const fs::path& dir, const ReportOptions& options) {
     return result;
   }
   Logger().info("report: {} {} {}", python, script.string(), dir.string());
-  result.exit_code = Run({python, script.string(), dir.string(), "--false-loop-distance",
-                          std::to_string(options.false_loop_distance)},
-                         /*quiet=*/false);
+  std::vector<std::string> args = {python, script.string(), dir.string()};
+  if (options.false_loop_distance > 0.0) {
+    args.push_back("--false-loop-distance");
+    args.push_back(fmt::format("{}", options.false_loop_distance));
+  }
+  result.exit_code = Run(args, /*quiet=*/false);
+  if (result.exit_code == 2) {  // the run folder is malformed (the script said where)
+    result.status = ReportResult::Status::kBadInput;
+    result.message = "report.py: the run folder's files disagree or are malformed (see above)";
+    return result;
+  }
   if (result.exit_code != 0) {
     result.status = ReportResult::Status::kScriptFailed;
     result.message = "report.py failed with exit code " + std::to_string(result.exit_code);

@@ -157,8 +157,9 @@ void FabricateRun(const fs::path& dir) {
   for (int i = 210; i < 390; i += 20) loops << i << "," << i - 200 << ",0.8,50\n";
   loops << "300,50,0.3,20\n";  // false: opposite side of the circle
   std::ofstream summary(dir / "summary.json");
-  summary << R"({"frames": 400, "timing": {"features": {"mean_ms": 4.2}, "search": 0.3,
-               "matching": {"mean_ms": 2.5}, "posegraph": {"mean_ms": 12.0}}})";
+  // timing_ms as detect / run write it (ms per keyframe).
+  summary << R"({"frames": 400, "timing_ms": {"extract": {"median": 4.2}, "search": {"median": 0.3},
+               "match": {"median": 2.5}, "total": {"median": 12.0}}})";
   std::ofstream gt_loops(dir / "gt_loops.txt");
   for (int i = 200; i < 400; ++i) gt_loops << i << " " << i - 200 << "\n";
 }
@@ -180,7 +181,77 @@ TEST(ReportCli, WritesHtmlAndPlots) {
     EXPECT_NE(page.find(png), std::string::npos) << png;
     EXPECT_GT(fs::file_size(dir / png), 5000u) << png;
   }
-  EXPECT_NE(page.find("1 false"), std::string::npos) << "the fabricated false loop";
+  EXPECT_NE(page.find("1 accepted loops false"), std::string::npos) << "the fabricated false loop";
+}
+
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+// The report agrees with the run: its threshold and counts are summary.json's, rejected loops are
+// drawn as rejected, report.html is one self-contained file, a truncated loops.csv is an error.
+TEST(ReportCli, AgreesWithTheRunAndIsSelfContained) {
+  if (synthetic::FindPython().empty()) {
+    if (InCi()) FAIL() << "python3 with matplotlib required in CI";
+    GTEST_SKIP() << "no python3 with matplotlib";
+  }
+  const fs::path& seq = RenderedLoopSequence();
+  ASSERT_FALSE(seq.empty());
+  const auto run = OutDir("run");
+  CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                        (seq / "poses_raw.txt").string(), "--gt-loop-distance", "35", "--out",
+                        run.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(run / "summary.json");
+  const auto summary = nlohmann::json::parse(in);
+  const int loops = summary["loops"].get<int>();
+  const int accepted = summary["accepted_loops"].get<int>();
+  r = RunCli({"report", run.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::string page = ReadText(run / "report.html");
+  EXPECT_NE(page.find(fmt::format("{} loops, {} accepted", loops, accepted)), std::string::npos);
+  EXPECT_NE(page.find(fmt::format("{} accepted loops false (GT distance &gt; 35)",
+                                  summary["accepted_loops_false"].get<int>())),
+            std::string::npos)
+      << "the run's threshold (35), not the report's own 10";
+  EXPECT_NE(page.find("data:image/png;base64,"), std::string::npos);
+  EXPECT_EQ(page.find("src=\"report_"), std::string::npos) << "a linked image";
+
+  // One loop rejected by the pose graph is drawn and counted as rejected.
+  {
+    std::string csv = ReadText(run / "loops.csv");
+    const size_t row = csv.find('\n') + 1;
+    size_t field = row;
+    for (int i = 0; i < 7; ++i) field = csv.find(',', field) + 1;  // column 8: accepted
+    ASSERT_EQ(csv.substr(field, 2), "1,");
+    csv[field] = '0';
+    std::ofstream(run / "loops.csv") << csv;
+  }
+  r = RunCli({"report", run.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  page = ReadText(run / "report.html");
+  EXPECT_NE(page.find(fmt::format("{} loops, {} accepted, 1 rejected", loops, accepted - 1)),
+            std::string::npos);
+
+  // Truncated mid-row: an error naming the file and line, not a caption that disagrees.
+  {
+    std::string csv = ReadText(run / "loops.csv");
+    std::ofstream(run / "loops.csv") << csv.substr(0, csv.size() - 20);
+  }
+  r = RunCli({"report", run.string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("loops.csv:"), std::string::npos) << r.err;
+  // Whole rows missing: the count disagrees with summary.json.
+  {
+    std::string csv = ReadText(run / "loops.csv");
+    csv = csv.substr(0, csv.rfind('\n'));
+    csv = csv.substr(0, csv.rfind('\n') + 1);
+    std::ofstream(run / "loops.csv") << csv;
+  }
+  r = RunCli({"report", run.string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("(summary.json)"), std::string::npos) << r.err;
 }
 
 TEST(ReportCli, MissingFolderOrTrajectoryFails) {
@@ -188,7 +259,7 @@ TEST(ReportCli, MissingFolderOrTrajectoryFails) {
   if (synthetic::FindPython().empty()) GTEST_SKIP() << "no python3 with matplotlib";
   const auto empty = OutDir("empty");
   const CliResult r = RunCli({"report", empty.string()});
-  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.exit_code, 2);  // a folder without a trajectory is bad input
   EXPECT_NE(r.err.find("no trajectory"), std::string::npos) << r.err;
 }
 

@@ -1,6 +1,7 @@
 #pragma once
 // The HTML run report: locates scripts/report.py and a python3 with matplotlib, and runs it on a
-// run directory. The script writes DIR/report.html and DIR/report_*.png.
+// run directory. The script writes DIR/report.html (self-contained: plots embedded) and
+// DIR/report_*.png.
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -10,12 +11,15 @@ namespace sparseloop::synthetic {
 struct ReportOptions {
   std::filesystem::path script;       // report.py; empty: FindReportScript()
   std::string python;                 // interpreter; empty: FindPython()
-  double false_loop_distance = 10.0;  // metres (GT units): a loop is false beyond this GT distance
+  // GT units: an accepted loop is drawn as false beyond this GT distance; 0 (default): the run's
+  // own threshold, summary.json gt_loop_distance (10 without one), and the run's own verdicts.
+  double false_loop_distance = 0.0;
   void Check() const;
 };
 
 struct ReportResult {
-  enum class Status { kOk, kNoPython, kNoScript, kScriptFailed };
+  // kBadInput: the script refused the folder (exit 2: e.g. a truncated loops.csv).
+  enum class Status { kOk, kNoPython, kNoScript, kScriptFailed, kBadInput };
   Status status = Status::kNoScript;
   std::filesystem::path html;  // DIR/report.html when kOk
   int exit_code = -1;          // of the script
