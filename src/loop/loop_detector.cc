@@ -588,11 +588,32 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
              : none;
 }
 
-size_t LoopDetector::OdometryPathKeyframes(size_t a, size_t b) const {
+LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
+                                                          size_t match_index) const {
   auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
-  size_t best = dist(a, b);
-  for (const auto& [q, m] : accepted_loops_) {
-    best = std::min(best, std::min(dist(a, q) + dist(m, b), dist(a, m) + dist(q, b)));
+  auto rotation = [&](size_t i) -> const Eigen::Quaterniond& {
+    return records_[i].world_from_cam.rotation;
+  };
+  // a_from_b of the raw rotations.
+  auto raw = [&](size_t a, size_t b) { return rotation(a).conjugate() * rotation(b); };
+  GraphPrior best;
+  best.keyframes = dist(query_index, match_index);
+  best.match_from_query = raw(match_index, query_index);
+  for (const AcceptedLoop& l : accepted_loops_) {
+    if (!records_[l.query].has_pose || !records_[l.match].has_pose) continue;
+    // query ~ loop query, match ~ loop match; or the loop used the other way round.
+    const size_t forward = dist(query_index, l.query) + dist(l.match, match_index);
+    const size_t backward = dist(query_index, l.match) + dist(l.query, match_index);
+    if (forward < best.keyframes) {
+      best.keyframes = forward;
+      best.match_from_query =
+          raw(match_index, l.match) * l.match_from_query * raw(l.query, query_index);
+    }
+    if (backward < best.keyframes) {
+      best.keyframes = backward;
+      best.match_from_query =
+          raw(match_index, l.query) * l.match_from_query.conjugate() * raw(l.match, query_index);
+    }
   }
   return best;
 }
@@ -693,17 +714,19 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
     const bool from_3d = v.pose_kind == RelativePoseKind::kSE3Metric ||
                          v.pose_kind == RelativePoseKind::kSim3;
+    const GraphPrior graph_prior = query.has_pose && match.has_pose
+                                       ? PriorAlongLoopGraph(query_index, match_index)
+                                       : GraphPrior{};
     const double tolerance_deg = std::min(
         options_.consistency_max_deg,
         options_.consistency_base_deg +
             (from_3d ? options_.consistency_per_keyframe_deg
                      : options_.two_view_consistency_per_keyframe_deg) *
-                static_cast<double>(OdometryPathKeyframes(query_index, match_index)));
+                static_cast<double>(graph_prior.keyframes));
     if (v.success) {
       trial_status = LoopStatus::kDetected;
       if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {
-        const Eigen::Quaterniond prior =
-            match.world_from_cam.rotation.conjugate() * query.world_from_cam.rotation;
+        const Eigen::Quaterniond& prior = graph_prior.match_from_query;
         auto error_deg = [&](const Sim3d& pose) {
           return RotationAngle(prior, pose.rotation) * 180.0 / M_PI;
         };
@@ -756,7 +779,8 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   result->status = status;
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {
-    accepted_loops_.emplace_back(query_index, index_of_.at(result->match_id));
+    accepted_loops_.push_back(
+        {query_index, index_of_.at(result->match_id), result->match_from_query.rotation});
     search_.OnLoopAccepted(query.id, result->match_id);
   }
 }

@@ -85,7 +85,10 @@ struct LoopResult {
   // Information of match_from_query from the verifying inliers (VerificationResult::information:
   // PnP / Sim(3) only, zero for a two-view pose); the pose graph's loop edge uses it.
   PoseInformation7 information = PoseInformation7::Zero();
-  double rotation_error_vs_prior_deg = -1.0;  // -1 when no prior was available
+  // Angle between the verified rotation and the pose prior along the loop graph (the raw relative
+  // rotation, or through an accepted loop: see Options::consistency_per_keyframe_deg), degrees;
+  // -1 when no prior was available.
+  double rotation_error_vs_prior_deg = -1.0;
   // Local-map PnP (Options::local_map): points of the local map around match_id, and the PnP
   // inliers among them, when it gave the pose (method kPnP, pose_kind kSE3Metric); 0 otherwise.
   // `inliers` stays the two-view count that detected the loop.
@@ -142,7 +145,10 @@ class LoopDetector {
     // candidate|), i.e. the odometry since the two places were last tied together. The raw
     // rotation between them can have drifted by that much (a monocular VO's heading bias is up to
     // ~1 deg per keyframe: castle ring family, docs/DETECTOR.md "Rotation gate"); PCM in the pose
-    // graph stays the outlier filter for loops the wider gate lets through. A pose from 3D points
+    // graph stays the outlier filter for loops the wider gate lets through. When the path runs
+    // through an accepted loop, the prior rotation does too (raw odometry to the loop's ends, the
+    // loop's verified rotation, raw odometry back), not the raw rotation between the two passes,
+    // which still holds the whole drift. A pose from 3D points
     // (PnP / Sim(3)) uses consistency_per_keyframe_deg; a two-view pose (essential matrix, which
     // can pick the wrong one of two supported solutions) two_view_consistency_per_keyframe_deg.
     // Degrees.
@@ -280,11 +286,24 @@ class LoopDetector {
   std::vector<KeyframeRecord> records_;
   std::vector<double> path_length_;  // cumulative path length at each keyframe (pose units)
   std::unordered_map<int64_t, size_t> index_of_;
-  // Keyframe indices (query, match) of every loop this detector accepted, in order.
-  std::vector<std::pair<size_t, size_t>> accepted_loops_;
-  // Keyframes of odometry between record indices a and b along the loop graph (Options::
-  // consistency_per_keyframe_deg): |a - b|, or shorter through one accepted loop.
-  size_t OdometryPathKeyframes(size_t a, size_t b) const;
+  // Every loop this detector accepted: record indices and the verified relative rotation.
+  struct AcceptedLoop {
+    size_t query = 0;
+    size_t match = 0;
+    Eigen::Quaterniond match_from_query = Eigen::Quaterniond::Identity();
+  };
+  std::vector<AcceptedLoop> accepted_loops_;
+  // The rotation prior of a candidate pair and the keyframes of odometry it rests on, along the
+  // loop graph (Options::consistency_per_keyframe_deg): the raw relative rotation over |q - m|
+  // keyframes, or, shorter, raw odometry to an accepted loop's ends, the loop's own verified
+  // rotation, and raw odometry back. After a loop the raw poses of the two passes are still as
+  // far apart as the drift made them; only the loop knows the correction (issue #17: 27 true
+  // revisits in a row were rejected right after an accepted loop).
+  struct GraphPrior {
+    size_t keyframes = 0;
+    Eigen::Quaterniond match_from_query = Eigen::Quaterniond::Identity();
+  };
+  GraphPrior PriorAlongLoopGraph(size_t query_index, size_t match_index) const;
   std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
