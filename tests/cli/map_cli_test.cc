@@ -45,13 +45,16 @@ std::vector<CsvLoop> ReadLoops(const std::filesystem::path& path) {
   std::getline(lines, header);
   EXPECT_EQ(header,
             "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-            "scale,match_session");
+            "scale,match_session,query_image,match_image");
   std::vector<CsvLoop> out;
   for (std::string line; std::getline(lines, line);) {
     CsvLoop l;
     l.query = std::stoi(line.substr(0, line.find(',')));
     l.match = std::stoi(line.substr(line.find(',') + 1));
-    l.match_session = std::stoi(line.substr(line.rfind(',') + 1));
+    std::vector<std::string> fields;
+    std::istringstream row(line);
+    for (std::string f; std::getline(row, f, ',');) fields.push_back(f);
+    l.match_session = std::stoi(fields.at(15));
     out.push_back(l);
   }
   return out;
