@@ -1,117 +1,116 @@
 #include "sparseloop/pipeline/config.h"
 
+#include <algorithm>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <set>
 #include <sstream>
+#include <type_traits>
 
-#include "sparseloop/core/check.h"
+#include <fmt/format.h>
+
 #include "sparseloop/core/error.h"
 
 namespace sparseloop {
 namespace {
 
-// Reads the keys of one JSON object strictly: every key must be consumed by a Get/Object call,
-// else Finish() throws naming the unknown key.
-class ObjectReader {
+// A reference to one field of PipelineOptions, const or not.
+#define SL_FIELD(member) \
+  [](auto& o) -> auto& { return o.member; }
+
+template <typename T>
+T ReadValue(const nlohmann::json& v) {
+  if constexpr (std::is_same_v<T, bool>) {
+    if (!v.is_boolean()) throw ConfigValueError{"a boolean", v.dump()};
+    return v.get<bool>();
+  } else if constexpr (std::is_integral_v<T>) {
+    if (!v.is_number_integer()) throw ConfigValueError{"an integer", v.dump()};
+    const bool fits = v.is_number_unsigned()
+                          ? v.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max())
+                          : v.get<int64_t>() >= int64_t(std::numeric_limits<T>::min()) &&
+                                (!std::is_signed_v<T> ||
+                                 v.get<int64_t>() <= int64_t(std::numeric_limits<T>::max()));
+    if (!fits) {
+      throw ConfigValueError{fmt::format("an integer in [{}, {}]", std::numeric_limits<T>::min(),
+                                         std::numeric_limits<T>::max()),
+                             v.dump()};
+    }
+    return v.get<T>();
+  } else {
+    static_assert(std::is_floating_point_v<T>);
+    if (!v.is_number()) throw ConfigValueError{"a number", v.dump()};
+    return v.get<T>();
+  }
+}
+
+// The type of the field a SL_FIELD lambda refers to.
+template <typename Field>
+using FieldType =
+    std::remove_cvref_t<decltype(std::declval<Field>()(std::declval<PipelineOptions&>()))>;
+
+template <typename T>
+const char* TypeName() {
+  if constexpr (std::is_same_v<T, bool>) return "boolean";
+  if constexpr (std::is_integral_v<T>) return "integer";
+  return "number";
+}
+
+class KeyList {
  public:
-  ObjectReader(const nlohmann::json& j, std::string path, const std::string& source)
-      : j_(j), path_(std::move(path)), source_(source) {
-    if (!j_.is_object()) Fail(path_.empty() ? "<root>" : path_, "a JSON object");
+  // A boolean or numeric field.
+  template <typename Field>
+  void Add(std::string path, Field field, std::string unit, std::string help) {
+    using T = FieldType<Field>;
+    keys_.push_back(ConfigKey{
+        std::move(path),
+        TypeName<T>(),
+        std::move(unit),
+        std::move(help),
+        {},
+        [field](const PipelineOptions& o) { return nlohmann::json(field(o)); },
+        [field](const nlohmann::json& v, PipelineOptions* o) { field(*o) = ReadValue<T>(v); }});
   }
 
-  template <typename T>
-  void Get(const std::string& key, T* value) {
-    auto it = j_.find(key);
-    if (it == j_.end()) return;
-    seen_.insert(key);
-    try {
-      if constexpr (std::is_same_v<T, bool>) {
-        if (!it->is_boolean()) throw std::runtime_error("type");
-      } else if constexpr (std::is_integral_v<T>) {
-        if (!it->is_number_integer()) throw std::runtime_error("type");
-      } else if constexpr (std::is_floating_point_v<T>) {
-        if (!it->is_number()) throw std::runtime_error("type");
-      } else {
-        if (!it->is_string()) throw std::runtime_error("type");
-      }
-      *value = it->get<T>();
-    } catch (const std::exception&) {
-      Fail(Join(key), std::is_same_v<T, bool>       ? "a boolean"
-                      : std::is_integral_v<T>       ? "an integer"
-                      : std::is_floating_point_v<T> ? "a number"
-                                                    : "a string");
-    }
+  // An enum field written as a name: `values` are the accepted ones, `name` the enum's own
+  // name function (so the spelling lives next to the enum).
+  template <typename Field, typename Name>
+  void AddEnum(std::string path, Field field, std::vector<FieldType<Field>> values, Name name,
+               std::string help) {
+    std::vector<std::string> names;
+    for (const auto e : values) names.push_back(name(e));
+    std::string expected = "one of ";
+    for (size_t i = 0; i < names.size(); ++i) expected += (i ? "|" : "") + names[i];
+    keys_.push_back(
+        ConfigKey{std::move(path), "string", "", std::move(help), names,
+                  [field, name](const PipelineOptions& o) {
+                    return nlohmann::json(std::string(name(field(o))));
+                  },
+                  [field, values, names, expected](const nlohmann::json& v, PipelineOptions* o) {
+                    if (!v.is_string()) throw ConfigValueError{"a string", v.dump()};
+                    const auto it = std::find(names.begin(), names.end(), v.get<std::string>());
+                    if (it == names.end()) throw ConfigValueError{expected, v.dump()};
+                    field(*o) = values[it - names.begin()];
+                  }});
   }
 
-  // An enum given by name, parsed by `parse` (which throws std::invalid_argument).
-  template <typename E, typename Parse>
-  void GetEnum(const std::string& key, E* value, Parse parse, const char* expected) {
-    std::string name;
-    if (!j_.contains(key)) return;
-    Get(key, &name);
-    try {
-      *value = parse(name);
-    } catch (const std::invalid_argument&) {
-      Fail(Join(key), expected, "\"" + name + "\"");
-    }
-  }
-
-  // The raw value of `key` (marked as read), or nullptr when absent.
-  const nlohmann::json* Raw(const std::string& key) {
-    auto it = j_.find(key);
-    if (it == j_.end()) return nullptr;
-    seen_.insert(key);
-    return &*it;
-  }
-
-  std::optional<ObjectReader> Object(const std::string& key) {
-    auto it = j_.find(key);
-    if (it == j_.end()) return std::nullopt;
-    seen_.insert(key);
-    return ObjectReader(*it, Join(key), source_);
-  }
-
-  void Finish() const {
-    for (auto it = j_.begin(); it != j_.end(); ++it) {
-      if (!seen_.count(it.key())) Fail(Join(it.key()), "a known configuration key", "unknown key");
-    }
-  }
-
-  [[noreturn]] void Fail(const std::string& key, const std::string& expected,
-                         const std::string& got = "") const {
-    throw FileError(source_, 0, fmt::format("{} for \"{}\"", expected, key), got);
-  }
+  void Add(ConfigKey key) { keys_.push_back(std::move(key)); }
+  std::vector<ConfigKey> Take() { return std::move(keys_); }
 
  private:
-  std::string Join(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
-  const nlohmann::json& j_;
-  std::string path_;
-  const std::string& source_;
-  std::set<std::string> seen_;
+  std::vector<ConfigKey> keys_;
 };
 
-template <typename E>
-E ParseByName(const std::string& name, std::initializer_list<std::pair<const char*, E>> table) {
-  for (const auto& [n, e] : table) {
-    if (name == n) return e;
-  }
-  throw std::invalid_argument(name);
-}
-
-RobustLoss ParseLoss(const std::string& n) {
-  return ParseByName<RobustLoss>(n, {{"trivial", RobustLoss::kTrivial},
-                                     {"huber", RobustLoss::kHuber},
-                                     {"cauchy", RobustLoss::kCauchy}});
-}
 const char* LossName(RobustLoss l) {
-  return l == RobustLoss::kTrivial ? "trivial" : l == RobustLoss::kHuber ? "huber" : "cauchy";
-}
-OutlierRejection ParseRejection(const std::string& n) {
-  return ParseByName<OutlierRejection>(n,
-                                       {{"none", OutlierRejection::kNone},
-                                        {"pcm", OutlierRejection::kPcm},
-                                        {"switchable", OutlierRejection::kSwitchable},
-                                        {"pcm+switchable", OutlierRejection::kPcmAndSwitchable}});
+  switch (l) {
+    case RobustLoss::kTrivial:
+      return "trivial";
+    case RobustLoss::kHuber:
+      return "huber";
+    case RobustLoss::kCauchy:
+      return "cauchy";
+  }
+  return "?";
 }
 const char* RejectionName(OutlierRejection r) {
   switch (r) {
@@ -124,148 +123,401 @@ const char* RejectionName(OutlierRejection r) {
     case OutlierRejection::kPcmAndSwitchable:
       return "pcm+switchable";
   }
-  return "pcm";
-}
-VertexType ParseVertex(const std::string& n) {
-  return ParseByName<VertexType>(
-      n, {{"sim3", VertexType::kSim3}, {"se3", VertexType::kSe3}, {"4dof", VertexType::kFourDof}});
+  return "?";
 }
 const char* VertexName(VertexType v) {
-  return v == VertexType::kSim3      ? "sim3"
-         : v == VertexType::kSe3     ? "se3"
-         : v == VertexType::kFourDof ? "4dof"
-                                     : "se2";
+  switch (v) {
+    case VertexType::kSim3:
+      return "sim3";
+    case VertexType::kSe3:
+      return "se3";
+    case VertexType::kFourDof:
+      return "4dof";
+    default:
+      return "se2";
+  }
+}
+
+// detector.search.plane_normal: unset (absent) or [x, y, z].
+ConfigKey PlaneNormalKey() {
+  return ConfigKey{"detector.search.plane_normal",
+                   "[x, y, z]",
+                   "",
+                   "normal of the motion plane (any length > 0);"
+                   " absent: fitted to the trajectory by PCA; KITTI camera poses: [0, 1, 0]",
+                   {},
+                   [](const PipelineOptions& o) -> nlohmann::json {
+                     const auto& n = o.detector.search.plane_normal;
+                     if (!n) return nullptr;
+                     return {n->x(), n->y(), n->z()};
+                   },
+                   [](const nlohmann::json& n, PipelineOptions* o) {
+                     if (!n.is_array() || n.size() != 3 || !n[0].is_number() || !n[1].is_number() ||
+                         !n[2].is_number()) {
+                       throw ConfigValueError{"an array of 3 numbers", ""};
+                     }
+                     o->detector.search.plane_normal = Eigen::Vector3d(
+                         n[0].get<double>(), n[1].get<double>(), n[2].get<double>());
+                   }};
+}
+
+void AddDetectorKeys(KeyList& k) {
+  const std::string f = "detector.features.";
+  k.Add(f + "max_features", SL_FIELD(detector.features.max_features), "features",
+        "K, informative features kept per keyframe (>= 1)");
+  k.AddEnum(
+      f + "ranking", SL_FIELD(detector.features.ranking),
+      {FeatureRanking::kPopcount, FeatureRanking::kResponse, FeatureRanking::kGridResponse},
+      [](FeatureRanking r) { return ToString(r); },
+      "how the K are chosen: popcount (paper), ORB response, grid (response per cell)");
+  k.Add(f + "orb_candidates", SL_FIELD(detector.features.orb_candidates), "features",
+        "ORB detections before ranking (>= K)");
+  k.Add(f + "orb_levels", SL_FIELD(detector.features.orb_levels), "levels",
+        "ORB pyramid levels (>= 1)");
+  k.Add(f + "orb_scale_factor", SL_FIELD(detector.features.orb_scale_factor), "ratio",
+        "ORB pyramid scale step (> 1)");
+  k.Add(f + "orb_fast_threshold", SL_FIELD(detector.features.orb_fast_threshold), "grey levels",
+        "FAST threshold");
+  k.AddEnum(
+      f + "orb_backend", SL_FIELD(detector.features.orb_backend),
+      {OrbBackend::kOpenCv, OrbBackend::kFast}, [](OrbBackend b) { return ToString(b); },
+      "ORB implementation (same output; fast is about 3x faster)");
+  k.Add(f + "grid_cols", SL_FIELD(detector.features.grid_cols), "cells",
+        "grid ranking: columns (>= 1)");
+  k.Add(f + "grid_rows", SL_FIELD(detector.features.grid_rows), "cells",
+        "grid ranking: rows (>= 1)");
+  k.Add(f + "use_gradient_mask", SL_FIELD(detector.features.use_gradient_mask), "",
+        "keep features in the high-gradient area only when the keyframe brings no mask");
+  k.Add(f + "gradient.block_size", SL_FIELD(detector.features.gradient.block_size), "px",
+        "gradient mask: side of the adaptive-threshold blocks");
+  k.Add(f + "gradient.threshold_offset", SL_FIELD(detector.features.gradient.threshold_offset),
+        "grey levels", "gradient mask: selected when |grad| > block median + offset");
+  k.Add(f + "gradient.dilate_radius", SL_FIELD(detector.features.gradient.dilate_radius), "px",
+        "gradient mask: dilation of the selection");
+
+  const std::string s = "detector.search.";
+  k.AddEnum(
+      s + "strategy", SL_FIELD(detector.search.strategy),
+      {SearchStrategy::kPaper, SearchStrategy::kRadius, SearchStrategy::kGlobal},
+      [](SearchStrategy x) { return ToString(x); },
+      "search area: paper (wedge on the trajectory), radius, global (every past keyframe)");
+  k.Add(s + "alpha_deg", SL_FIELD(detector.search.alpha_deg), "deg",
+        "paper: half-opening of the wedge (0, 180]");
+  k.Add(s + "exclude_recent", SL_FIELD(detector.search.exclude_recent), "keyframes",
+        "most recent keyframes before the query never searched (>= 0)");
+  k.Add(s + "radius", SL_FIELD(detector.search.radius), "world units",
+        "radius: search radius around the current position");
+  k.Add(s + "radius_in_plane", SL_FIELD(detector.search.radius_in_plane), "",
+        "radius: measured in the motion plane (true) or in 3D (false)");
+  k.Add(s + "drift_tolerance", SL_FIELD(detector.search.drift_tolerance), "fraction",
+        "widening by this fraction of the path since the last loop (0: off)");
+  k.Add(PlaneNormalKey());
+  k.Add(s + "fallback_count", SL_FIELD(detector.search.fallback_count), "keyframes",
+        "paper: keyframes searched when the motion ray hits nothing (>= 1)");
+  k.Add(s + "min_motion", SL_FIELD(detector.search.min_motion), "world units",
+        "in-plane displacements shorter than this are no motion");
+  k.Add(s + "motion_lookback", SL_FIELD(detector.search.motion_lookback), "keyframes",
+        "how far back to look for a motion of at least min_motion");
+  k.Add(s + "refit_growth", SL_FIELD(detector.search.refit_growth), "fraction",
+        "trajectory growth that triggers a plane refit and grid rebuild (> 0)");
+  k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
+        "grid cell size (0: 4x the mean in-plane step)");
+
+  const std::string m = "detector.match.";
+  k.Add(m + "max_distance", SL_FIELD(detector.match.max_distance), "bits",
+        "largest accepted Hamming distance (of 256)");
+  k.Add(m + "ratio", SL_FIELD(detector.match.ratio), "ratio",
+        "best < ratio x second best, (0, 1] (1: no ratio test)");
+  k.Add(m + "mutual", SL_FIELD(detector.match.mutual), "",
+        "keep a match only when it is also best in the other direction");
+
+  const std::string v = "detector.verify.";
+  k.Add(v + "threshold_px", SL_FIELD(detector.verify.threshold_px), "px",
+        "RANSAC inlier threshold");
+  k.Add(v + "confidence", SL_FIELD(detector.verify.confidence), "probability",
+        "RANSAC confidence (0, 1)");
+  k.Add(v + "max_iterations", SL_FIELD(detector.verify.max_iterations), "iterations",
+        "RANSAC iterations (>= 1)");
+  k.Add(v + "local_optimization_rounds", SL_FIELD(detector.verify.local_optimization_rounds),
+        "rounds", "essential matrix: local optimisation rounds after RANSAC (>= 0)");
+  k.Add(v + "min_inliers", SL_FIELD(detector.verify.min_inliers), "inliers",
+        "a pair with fewer geometric inliers fails");
+  k.Add(v + "min_inlier_ratio", SL_FIELD(detector.verify.min_inlier_ratio), "ratio",
+        "inliers / matches below this fail [0, 1]");
+  k.Add(v + "use_fundamental", SL_FIELD(detector.verify.use_fundamental), "",
+        "fundamental matrix instead of essential (intrinsics unknown)");
+  k.Add(v + "use_depths", SL_FIELD(detector.verify.use_depths), "",
+        "PnP / Sim(3) when depths exist");
+  k.Add(v + "information_min_sigma_px", SL_FIELD(detector.verify.information_min_sigma_px), "px",
+        "floor of the residual sigma behind a loop's information");
+
+  const std::string l = "detector.local_map.";
+  k.Add(l + "enabled", SL_FIELD(detector.local_map.enabled), "",
+        "verify monocular loops again by PnP against a local map of the match");
+  k.Add(l + "window", SL_FIELD(detector.local_map.window), "keyframes",
+        "keyframes each side of the match whose points enter the local map (>= 0)");
+  k.Add(l + "neighbours", SL_FIELD(detector.local_map.neighbours), "keyframes",
+        "keyframes each side each map keyframe is triangulated with (>= 1)");
+  k.Add(l + "max_reprojection_px", SL_FIELD(detector.local_map.triangulation.max_reprojection_px),
+        "px", "a map point must reproject within this in both views");
+  k.Add(l + "min_parallax_deg", SL_FIELD(detector.local_map.triangulation.min_parallax_deg), "deg",
+        "smallest angle between the two rays of a map point");
+  k.Add(l + "match.max_distance", SL_FIELD(detector.local_map.triangulation.match.max_distance),
+        "bits", "triangulation matching: largest Hamming distance");
+  k.Add(l + "match.ratio", SL_FIELD(detector.local_map.triangulation.match.ratio), "ratio",
+        "triangulation matching: ratio test (0, 1]");
+  k.Add(l + "match.mutual", SL_FIELD(detector.local_map.triangulation.match.mutual), "",
+        "triangulation matching: mutual best only");
+
+  const std::string d = "detector.";
+  k.Add(d + "check_every", SL_FIELD(detector.check_every), "keyframes",
+        "run the loop check every N keyframes (>= 1)");
+  k.Add(d + "min_matches", SL_FIELD(detector.min_matches), "matches",
+        "candidates with fewer descriptor matches are not verified");
+  k.Add(d + "small_k_fraction", SL_FIELD(detector.small_k_fraction), "fraction",
+        "below K = 30 the match and inlier floors become ceil(fraction x K) (0, 1]");
+  k.Add(d + "small_k_floor", SL_FIELD(detector.small_k_floor), "matches",
+        "lowest small-K floor (>= 5)");
+  k.Add(d + "max_verify", SL_FIELD(detector.max_verify), "candidates",
+        "best-ranked candidates verified geometrically (>= 1)");
+  k.Add(d + "min_inlier_fraction_of_k", SL_FIELD(detector.min_inlier_fraction_of_k), "fraction",
+        "inlier floor grows as ceil(fraction x K) [0, 1]");
+  k.Add(d + "min_path_ratio", SL_FIELD(detector.min_path_ratio), "ratio",
+        "path between candidate and query >= ratio x their distance (needs poses; 0: off)");
+  k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
+        "reject loops whose rotation disagrees with the pose prior");
+  k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",
+        "try a homography's other poses when the two-view pose fails the prior");
+  k.Add(d + "planar_alternative_tolerance", SL_FIELD(detector.planar_alternative_tolerance),
+        "fraction", "an alternative must agree within this fraction of the tolerance (0, 1]");
+  k.Add(d + "consistency_base_deg", SL_FIELD(detector.consistency_base_deg), "deg",
+        "rotation gate: base tolerance");
+  k.Add(d + "consistency_per_keyframe_deg", SL_FIELD(detector.consistency_per_keyframe_deg),
+        "deg/keyframe", "rotation gate: growth per keyframe of odometry (PnP / Sim(3) pose)");
+  k.Add(d + "two_view_consistency_per_keyframe_deg",
+        SL_FIELD(detector.two_view_consistency_per_keyframe_deg), "deg/keyframe",
+        "rotation gate: growth per keyframe of odometry (two-view pose)");
+  k.Add(d + "consistency_max_deg", SL_FIELD(detector.consistency_max_deg), "deg",
+        "rotation gate: largest tolerance");
+  k.Add(d + "temporal_check", SL_FIELD(detector.temporal_check), "",
+        "accept only when the previous check also matched nearby");
+  k.Add(d + "temporal_window", SL_FIELD(detector.temporal_window), "keyframes",
+        "temporal check: how near the previous match must be");
+  k.AddEnum(
+      d + "retrieval", SL_FIELD(detector.retrieval),
+      {CandidateRetrieval::kBruteForce, CandidateRetrieval::kAnn},
+      [](CandidateRetrieval r) { return ToString(r); },
+      "candidates: brute_force (match every one) or ann (index votes)");
+  k.Add(d + "search_prior_sessions", SL_FIELD(detector.search_prior_sessions), "",
+        "multi-session: match earlier map sessions when this one gives no loop");
+  k.Add(d + "relocalize_without_pose", SL_FIELD(detector.relocalize_without_pose), "",
+        "a keyframe without a pose is relocalised (false: rejected)");
+
+  const std::string a = "detector.ann.";
+  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node (>= 2)");
+  k.Add(a + "ef_construction", SL_FIELD(detector.ann.ef_construction), "candidates",
+        "HNSW candidate list while inserting (>= 1)");
+  k.Add(a + "ef_search", SL_FIELD(detector.ann.ef_search), "candidates",
+        "HNSW candidate list while searching (>= neighbors)");
+  k.Add(a + "neighbors", SL_FIELD(detector.ann.neighbors), "descriptors",
+        "nearest stored descriptors per query descriptor (>= 1)");
+  k.Add(a + "max_distance", SL_FIELD(detector.ann.max_distance), "bits",
+        "a farther neighbour votes for nothing [0, 256]");
+  k.Add(a + "max_candidates", SL_FIELD(detector.ann.max_candidates), "keyframes",
+        "top-voted keyframes matched and verified (>= 1)");
+  k.Add(a + "num_threads", SL_FIELD(detector.ann.num_threads), "threads",
+        "OpenMP threads of the index (1: deterministic inserts)");
+  k.Add(d + "seed", SL_FIELD(detector.seed), "", "RNG seed of the verification");
+}
+
+void AddOptimizerKeys(KeyList& k) {
+  const std::string p = "optimizer.";
+  k.Add(p + "max_iterations", SL_FIELD(optimizer.max_iterations), "iterations",
+        "Levenberg-Marquardt iterations (>= 1)");
+  k.Add(p + "function_tolerance", SL_FIELD(optimizer.function_tolerance), "relative",
+        "relative cost change for convergence");
+  k.Add(p + "gradient_tolerance", SL_FIELD(optimizer.gradient_tolerance), "",
+        "Ceres gradient tolerance");
+  k.Add(p + "parameter_tolerance", SL_FIELD(optimizer.parameter_tolerance), "",
+        "Ceres parameter tolerance");
+  k.Add(p + "initial_trust_region_radius", SL_FIELD(optimizer.initial_trust_region_radius), "",
+        "first trust region (1 / damping)");
+  const std::vector<RobustLoss> losses = {RobustLoss::kTrivial, RobustLoss::kHuber,
+                                          RobustLoss::kCauchy};
+  k.AddEnum(p + "loop_loss", SL_FIELD(optimizer.loop_loss), losses, LossName,
+            "robust loss on loop residuals");
+  k.AddEnum(p + "edge_loss", SL_FIELD(optimizer.edge_loss), losses, LossName,
+            "robust loss on odometry edges");
+  k.Add(p + "loss_scale", SL_FIELD(optimizer.loss_scale), "sigmas",
+        "whitened residual where the robust loss bends");
+  k.AddEnum(p + "rejection", SL_FIELD(optimizer.rejection),
+            {OutlierRejection::kNone, OutlierRejection::kPcm, OutlierRejection::kSwitchable,
+             OutlierRejection::kPcmAndSwitchable},
+            RejectionName, "outlier loop rejection");
+  k.Add(p + "pcm_confidence", SL_FIELD(optimizer.pcm.confidence), "probability",
+        "PCM: chi-square quantile of the consistency threshold");
+  k.Add(p + "pcm_step_translation_fraction", SL_FIELD(optimizer.pcm.step_translation_fraction),
+        "fraction", "PCM: translation sigma per step / step length");
+  k.Add(p + "pcm_step_rotation_sigma_rad", SL_FIELD(optimizer.pcm.step_rotation_sigma_rad), "rad",
+        "PCM: rotation sigma per step");
+  k.Add(p + "pcm_step_scale_sigma", SL_FIELD(optimizer.pcm.step_scale_sigma), "log-scale",
+        "PCM: scale sigma per step (Sim(3))");
+  k.Add(p + "pcm_max_exact_clique", SL_FIELD(optimizer.pcm.max_exact_clique), "loops",
+        "PCM: above this many loops a greedy clique is used");
+  k.Add(p + "switch_prior_sigma", SL_FIELD(optimizer.switch_prior_sigma), "",
+        "switchable: std-dev of the switch prior");
+  k.Add(p + "switch_reject_below", SL_FIELD(optimizer.switch_reject_below), "",
+        "switchable: a loop whose switch ends below this is rejected");
+  k.Add(p + "num_threads", SL_FIELD(optimizer.num_threads), "threads", "Ceres threads (>= 1)");
+  k.Add(p + "reduce_chains", SL_FIELD(optimizer.reduce_chains), "",
+        "Sim(3): solve without odometry-chain vertices, recover them after");
+  k.Add(p + "max_chain_length", SL_FIELD(optimizer.max_chain_length), "edges",
+        "edges per composed chain (>= 1)");
+  k.Add(p + "log_progress", SL_FIELD(optimizer.log_progress), "",
+        "log every iteration (through the logger, never stdout)");
+}
+
+void AddGraphKeys(KeyList& k) {
+  const std::string o = "odometry.";
+  k.Add(o + "translation_fraction", SL_FIELD(odometry.translation_fraction), "fraction",
+        "odometry translation sigma / step length");
+  k.Add(o + "min_translation_sigma", SL_FIELD(odometry.min_translation_sigma), "raw units",
+        "floor of the odometry translation sigma");
+  k.Add(o + "rotation_sigma_rad", SL_FIELD(odometry.rotation_sigma_rad), "rad",
+        "odometry rotation sigma per step");
+  k.Add(o + "scale_sigma", SL_FIELD(odometry.scale_sigma), "log-scale",
+        "odometry scale sigma per step (Sim(3))");
+  const std::string d = "direction_loop.";
+  k.Add(d + "baseline_in_steps", SL_FIELD(direction_loop.baseline_in_steps), "steps",
+        "loop with a direction only: assumed |t| / local step length");
+  k.Add(d + "magnitude_sigma_fraction", SL_FIELD(direction_loop.magnitude_sigma_fraction),
+        "fraction", "loop with a direction only: sigma along the direction / magnitude");
+  k.Add(d + "direction_sigma_rad", SL_FIELD(direction_loop.direction_sigma_rad), "rad",
+        "loop with a direction only: angular sigma of the direction");
+  k.Add(d + "rotation_sigma_rad", SL_FIELD(direction_loop.rotation_sigma_rad), "rad",
+        "loop with a direction only: rotation sigma");
+  k.Add(d + "weight", SL_FIELD(direction_loop.weight), "",
+        "loop with a direction only: "
+        "information multiplier");
+  k.AddEnum("vertex_type", SL_FIELD(vertex_type),
+            {VertexType::kSim3, VertexType::kSe3, VertexType::kFourDof}, VertexName,
+            "pose-graph vertices (sim3 for monocular raw poses)");
+  k.Add("loop_translation_sigma_steps", SL_FIELD(loop_translation_sigma_steps), "steps",
+        "metric loop: translation sigma in raw steps at the query");
+  k.Add("loop_rotation_sigma_rad", SL_FIELD(loop_rotation_sigma_rad), "rad",
+        "metric loop: rotation sigma");
+  k.Add("loop_scale_sigma", SL_FIELD(loop_scale_sigma), "log-scale", "metric loop: scale sigma");
+  k.Add("loop_information_from_estimate", SL_FIELD(loop_information_from_estimate), "",
+        "PnP / Sim(3) loops use their own measured covariance");
+  k.Add("loop_covariance_inflation", SL_FIELD(loop_covariance_inflation), "",
+        "multiplier of a loop's measured covariance (>= 1)");
+  k.Add("loop_min_translation_sigma_steps", SL_FIELD(loop_min_translation_sigma_steps), "steps",
+        "floor of a measured loop's translation sigma");
+  k.Add("loop_min_rotation_sigma_rad", SL_FIELD(loop_min_rotation_sigma_rad), "rad",
+        "floor of a measured loop's rotation sigma");
+  k.Add("loop_min_scale_sigma", SL_FIELD(loop_min_scale_sigma), "log-scale",
+        "floor of a measured loop's scale sigma");
+  k.Add("use_mapped_pixels", SL_FIELD(use_mapped_pixels), "",
+        "read DIR/mapped/NNNNNN.txt (u v depth) when the dataset has it");
+  k.Add("raw_association_max_dt", SL_FIELD(raw_association_max_dt), "s",
+        "raw poses matched to frames by timestamp within this");
+  k.Add("skip_unreadable_frames", SL_FIELD(skip_unreadable_frames), "",
+        "skip (and count) a frame whose image cannot be read instead of failing");
+}
+
+#undef SL_FIELD
+
+// Every proper prefix of a key path ("detector", "detector.features", ...): a JSON object.
+const std::set<std::string>& Groups() {
+  static const std::set<std::string> groups = [] {
+    std::set<std::string> g;
+    for (const ConfigKey& key : ConfigKeys()) {
+      for (size_t dot = key.path.find('.'); dot != std::string::npos;
+           dot = key.path.find('.', dot + 1)) {
+        g.insert(key.path.substr(0, dot));
+      }
+    }
+    return g;
+  }();
+  return groups;
+}
+
+void ReadObject(const nlohmann::json& j, const std::string& prefix, const std::string& source,
+                PipelineOptions* options) {
+  static const std::map<std::string, const ConfigKey*> by_path = [] {
+    std::map<std::string, const ConfigKey*> m;
+    for (const ConfigKey& key : ConfigKeys()) m[key.path] = &key;
+    return m;
+  }();
+  auto fail = [&](const std::string& path, const std::string& expected, const std::string& got) {
+    throw FileError(source, 0, fmt::format("{} for \"{}\"", expected, path), got);
+  };
+  if (!j.is_object()) fail(prefix.empty() ? "<root>" : prefix, "a JSON object", "");
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string path = prefix.empty() ? it.key() : prefix + "." + it.key();
+    if (const auto key = by_path.find(path); key != by_path.end()) {
+      try {
+        key->second->set(*it, options);
+      } catch (const ConfigValueError& e) {
+        fail(path, e.expected, e.got);
+      }
+    } else if (Groups().count(path)) {
+      ReadObject(*it, path, source, options);
+    } else if (path == "doc") {  // written by `config --dump`, not read
+      if (!it->is_object()) fail(path, "a JSON object", "");
+    } else {
+      fail(path, "a known configuration key", "unknown key");
+    }
+  }
+}
+
+bool InScope(const ConfigKey& key, const std::string& scope) {
+  return scope.empty() || key.path == scope || key.path.rfind(scope + ".", 0) == 0;
+}
+
+nlohmann::json::json_pointer Pointer(const std::string& path) {
+  std::string p = "/" + path;
+  std::replace(p.begin(), p.end(), '.', '/');
+  return nlohmann::json::json_pointer(p);
+}
+
+// The values of the keys under `scope`, as a JSON tree (an unset value is left out).
+nlohmann::json ConfigJson(const PipelineOptions& options, const std::string& scope) {
+  nlohmann::json config = nlohmann::json::object();
+  for (const ConfigKey& key : ConfigKeys()) {
+    if (!InScope(key, scope)) continue;
+    nlohmann::json value = key.get(options);
+    if (!value.is_null()) config[Pointer(key.path)] = std::move(value);
+  }
+  return config;
 }
 
 }  // namespace
 
+std::string ConfigKey::Doc() const {
+  std::string doc = help;
+  if (!choices.empty()) {
+    doc += "; one of ";
+    for (size_t i = 0; i < choices.size(); ++i) doc += (i ? "|" : "") + choices[i];
+  }
+  if (!unit.empty()) doc += " [" + unit + "]";
+  return doc;
+}
+
+const std::vector<ConfigKey>& ConfigKeys() {
+  static const std::vector<ConfigKey> keys = [] {
+    KeyList k;
+    AddDetectorKeys(k);
+    AddOptimizerKeys(k);
+    AddGraphKeys(k);
+    return k.Take();
+  }();
+  return keys;
+}
+
 void ApplyConfig(const nlohmann::json& config, const std::string& source,
                  PipelineOptions* options) {
-  ObjectReader root(config, "", source);
-  if (auto d = root.Object("detector")) {
-    LoopDetector::Options& o = options->detector;
-    if (auto f = d->Object("features")) {
-      f->Get("max_features", &o.features.max_features);
-      f->GetEnum("ranking", &o.features.ranking, ParseFeatureRanking,
-                 "one of popcount|response|grid");
-      f->Get("orb_candidates", &o.features.orb_candidates);
-      f->Get("orb_levels", &o.features.orb_levels);
-      f->Get("orb_scale_factor", &o.features.orb_scale_factor);
-      f->Get("orb_fast_threshold", &o.features.orb_fast_threshold);
-      f->Get("grid_cols", &o.features.grid_cols);
-      f->Get("grid_rows", &o.features.grid_rows);
-      f->Get("use_gradient_mask", &o.features.use_gradient_mask);
-      f->Finish();
-    }
-    if (auto s = d->Object("search")) {
-      s->GetEnum("strategy", &o.search.strategy, ParseSearchStrategy, "one of paper|radius|global");
-      s->Get("alpha_deg", &o.search.alpha_deg);
-      s->Get("exclude_recent", &o.search.exclude_recent);
-      s->Get("radius", &o.search.radius);
-      s->Get("radius_in_plane", &o.search.radius_in_plane);
-      s->Get("drift_tolerance", &o.search.drift_tolerance);
-      s->Get("fallback_count", &o.search.fallback_count);
-      if (const nlohmann::json* normal = s->Raw("plane_normal")) {
-        const auto& n = *normal;
-        if (!n.is_array() || n.size() != 3 || !n[0].is_number() || !n[1].is_number() ||
-            !n[2].is_number()) {
-          s->Fail("detector.search.plane_normal", "an array of 3 numbers");
-        }
-        o.search.plane_normal =
-            Eigen::Vector3d(n[0].get<double>(), n[1].get<double>(), n[2].get<double>());
-      }
-      s->Finish();
-    }
-    if (auto m = d->Object("match")) {
-      m->Get("max_distance", &o.match.max_distance);
-      m->Get("ratio", &o.match.ratio);
-      m->Get("mutual", &o.match.mutual);
-      m->Finish();
-    }
-    if (auto v = d->Object("verify")) {
-      v->Get("threshold_px", &o.verify.threshold_px);
-      v->Get("confidence", &o.verify.confidence);
-      v->Get("max_iterations", &o.verify.max_iterations);
-      v->Get("min_inliers", &o.verify.min_inliers);
-      v->Get("min_inlier_ratio", &o.verify.min_inlier_ratio);
-      v->Get("use_fundamental", &o.verify.use_fundamental);
-      v->Get("use_depths", &o.verify.use_depths);
-      v->Finish();
-    }
-    if (auto l = d->Object("local_map")) {
-      l->Get("enabled", &o.local_map.enabled);
-      l->Get("window", &o.local_map.window);
-      l->Get("neighbours", &o.local_map.neighbours);
-      l->Get("max_reprojection_px", &o.local_map.triangulation.max_reprojection_px);
-      l->Get("min_parallax_deg", &o.local_map.triangulation.min_parallax_deg);
-      l->Finish();
-    }
-    d->Get("check_every", &o.check_every);
-    d->Get("min_matches", &o.min_matches);
-    d->Get("small_k_fraction", &o.small_k_fraction);
-    d->Get("small_k_floor", &o.small_k_floor);
-    d->Get("max_verify", &o.max_verify);
-    d->Get("min_inlier_fraction_of_k", &o.min_inlier_fraction_of_k);
-    d->Get("min_path_ratio", &o.min_path_ratio);
-    d->Get("check_consistency", &o.check_consistency);
-    d->Get("planar_alternatives", &o.planar_alternatives);
-    d->Get("planar_alternative_tolerance", &o.planar_alternative_tolerance);
-    d->Get("consistency_base_deg", &o.consistency_base_deg);
-    d->Get("consistency_per_keyframe_deg", &o.consistency_per_keyframe_deg);
-    d->Get("two_view_consistency_per_keyframe_deg", &o.two_view_consistency_per_keyframe_deg);
-    d->Get("consistency_max_deg", &o.consistency_max_deg);
-    d->Get("temporal_check", &o.temporal_check);
-    d->Get("temporal_window", &o.temporal_window);
-    d->GetEnum("retrieval", &o.retrieval, ParseCandidateRetrieval, "one of brute_force|ann");
-    if (auto a = d->Object("ann")) {
-      a->Get("hnsw_m", &o.ann.hnsw_m);
-      a->Get("ef_construction", &o.ann.ef_construction);
-      a->Get("ef_search", &o.ann.ef_search);
-      a->Get("neighbors", &o.ann.neighbors);
-      a->Get("max_distance", &o.ann.max_distance);
-      a->Get("max_candidates", &o.ann.max_candidates);
-      a->Get("num_threads", &o.ann.num_threads);
-      a->Finish();
-    }
-    d->Get("seed", &o.seed);
-    d->Finish();
-  }
-  if (auto p = root.Object("optimizer")) {
-    PoseGraphOptions& o = options->optimizer;
-    p->Get("max_iterations", &o.max_iterations);
-    p->Get("function_tolerance", &o.function_tolerance);
-    p->GetEnum("loop_loss", &o.loop_loss, ParseLoss, "one of trivial|huber|cauchy");
-    p->GetEnum("edge_loss", &o.edge_loss, ParseLoss, "one of trivial|huber|cauchy");
-    p->Get("loss_scale", &o.loss_scale);
-    p->GetEnum("rejection", &o.rejection, ParseRejection,
-               "one of none|pcm|switchable|pcm+switchable");
-    p->Get("pcm_confidence", &o.pcm.confidence);
-    p->Get("num_threads", &o.num_threads);
-    p->Get("reduce_chains", &o.reduce_chains);
-    p->Get("max_chain_length", &o.max_chain_length);
-    p->Finish();
-  }
-  if (auto p = root.Object("odometry")) {
-    OdometryWeighting& o = options->odometry;
-    p->Get("translation_fraction", &o.translation_fraction);
-    p->Get("min_translation_sigma", &o.min_translation_sigma);
-    p->Get("rotation_sigma_rad", &o.rotation_sigma_rad);
-    p->Get("scale_sigma", &o.scale_sigma);
-    p->Finish();
-  }
-  root.GetEnum("vertex_type", &options->vertex_type, ParseVertex, "one of sim3|se3|4dof");
-  root.Get("loop_translation_sigma_steps", &options->loop_translation_sigma_steps);
-  root.Get("loop_rotation_sigma_rad", &options->loop_rotation_sigma_rad);
-  root.Get("loop_scale_sigma", &options->loop_scale_sigma);
-  root.Get("loop_information_from_estimate", &options->loop_information_from_estimate);
-  root.Get("loop_covariance_inflation", &options->loop_covariance_inflation);
-  root.Get("loop_min_translation_sigma_steps", &options->loop_min_translation_sigma_steps);
-  root.Get("loop_min_rotation_sigma_rad", &options->loop_min_rotation_sigma_rad);
-  root.Get("loop_min_scale_sigma", &options->loop_min_scale_sigma);
-  root.Get("use_mapped_pixels", &options->use_mapped_pixels);
-  root.Get("raw_association_max_dt", &options->raw_association_max_dt);
-  root.Get("skip_unreadable_frames", &options->skip_unreadable_frames);
-  root.Finish();
+  ReadObject(config, "", source, options);
   options->detector.verify.seed = options->detector.seed;
   try {
     options->Check();
@@ -273,7 +525,6 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     throw FileError(source, 0, "valid option values", e.what());
   }
 }
-
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options) {
   std::ifstream in(path);
   if (!in) throw FileError(path.string(), 0, "a readable JSON configuration file");
@@ -296,101 +547,15 @@ void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options)
   ApplyConfig(j, path.string(), options);
 }
 
-nlohmann::json ConfigToJson(const PipelineOptions& options) {
-  const LoopDetector::Options& d = options.detector;
-  nlohmann::json search = {
-      {"strategy", ToString(d.search.strategy)},     {"alpha_deg", d.search.alpha_deg},
-      {"exclude_recent", d.search.exclude_recent},   {"radius", d.search.radius},
-      {"radius_in_plane", d.search.radius_in_plane}, {"drift_tolerance", d.search.drift_tolerance},
-      {"fallback_count", d.search.fallback_count}};
-  if (d.search.plane_normal) {
-    search["plane_normal"] = {d.search.plane_normal->x(), d.search.plane_normal->y(),
-                              d.search.plane_normal->z()};
+nlohmann::json ConfigToJson(const PipelineOptions& options) { return ConfigJson(options, ""); }
+
+nlohmann::json DumpConfig(const PipelineOptions& options, const std::string& scope) {
+  nlohmann::json dump = ConfigJson(options, scope);
+  nlohmann::json& doc = dump["doc"] = nlohmann::json::object();
+  for (const ConfigKey& key : ConfigKeys()) {
+    if (InScope(key, scope)) doc[key.path] = key.Doc();
   }
-  return {{"detector",
-           {{"features",
-             {{"max_features", d.features.max_features},
-              {"ranking", ToString(d.features.ranking)},
-              {"orb_candidates", d.features.orb_candidates},
-              {"orb_levels", d.features.orb_levels},
-              {"orb_scale_factor", d.features.orb_scale_factor},
-              {"orb_fast_threshold", d.features.orb_fast_threshold},
-              {"grid_cols", d.features.grid_cols},
-              {"grid_rows", d.features.grid_rows},
-              {"use_gradient_mask", d.features.use_gradient_mask}}},
-            {"search", search},
-            {"match",
-             {{"max_distance", d.match.max_distance},
-              {"ratio", d.match.ratio},
-              {"mutual", d.match.mutual}}},
-            {"verify",
-             {{"threshold_px", d.verify.threshold_px},
-              {"confidence", d.verify.confidence},
-              {"max_iterations", d.verify.max_iterations},
-              {"min_inliers", d.verify.min_inliers},
-              {"min_inlier_ratio", d.verify.min_inlier_ratio},
-              {"use_fundamental", d.verify.use_fundamental},
-              {"use_depths", d.verify.use_depths}}},
-            {"local_map",
-             {{"enabled", d.local_map.enabled},
-              {"window", d.local_map.window},
-              {"neighbours", d.local_map.neighbours},
-              {"max_reprojection_px", d.local_map.triangulation.max_reprojection_px},
-              {"min_parallax_deg", d.local_map.triangulation.min_parallax_deg}}},
-            {"check_every", d.check_every},
-            {"min_matches", d.min_matches},
-            {"small_k_fraction", d.small_k_fraction},
-            {"small_k_floor", d.small_k_floor},
-            {"max_verify", d.max_verify},
-            {"min_inlier_fraction_of_k", d.min_inlier_fraction_of_k},
-            {"min_path_ratio", d.min_path_ratio},
-            {"check_consistency", d.check_consistency},
-            {"planar_alternatives", d.planar_alternatives},
-            {"planar_alternative_tolerance", d.planar_alternative_tolerance},
-            {"consistency_base_deg", d.consistency_base_deg},
-            {"consistency_per_keyframe_deg", d.consistency_per_keyframe_deg},
-            {"two_view_consistency_per_keyframe_deg", d.two_view_consistency_per_keyframe_deg},
-            {"consistency_max_deg", d.consistency_max_deg},
-            {"temporal_check", d.temporal_check},
-            {"temporal_window", d.temporal_window},
-            {"retrieval", ToString(d.retrieval)},
-            {"ann",
-             {{"hnsw_m", d.ann.hnsw_m},
-              {"ef_construction", d.ann.ef_construction},
-              {"ef_search", d.ann.ef_search},
-              {"neighbors", d.ann.neighbors},
-              {"max_distance", d.ann.max_distance},
-              {"max_candidates", d.ann.max_candidates},
-              {"num_threads", d.ann.num_threads}}},
-            {"seed", d.seed}}},
-          {"optimizer",
-           {{"max_iterations", options.optimizer.max_iterations},
-            {"function_tolerance", options.optimizer.function_tolerance},
-            {"loop_loss", LossName(options.optimizer.loop_loss)},
-            {"edge_loss", LossName(options.optimizer.edge_loss)},
-            {"loss_scale", options.optimizer.loss_scale},
-            {"rejection", RejectionName(options.optimizer.rejection)},
-            {"pcm_confidence", options.optimizer.pcm.confidence},
-            {"num_threads", options.optimizer.num_threads},
-            {"reduce_chains", options.optimizer.reduce_chains},
-            {"max_chain_length", options.optimizer.max_chain_length}}},
-          {"odometry",
-           {{"translation_fraction", options.odometry.translation_fraction},
-            {"min_translation_sigma", options.odometry.min_translation_sigma},
-            {"rotation_sigma_rad", options.odometry.rotation_sigma_rad},
-            {"scale_sigma", options.odometry.scale_sigma}}},
-          {"vertex_type", VertexName(options.vertex_type)},
-          {"loop_translation_sigma_steps", options.loop_translation_sigma_steps},
-          {"loop_rotation_sigma_rad", options.loop_rotation_sigma_rad},
-          {"loop_scale_sigma", options.loop_scale_sigma},
-          {"loop_information_from_estimate", options.loop_information_from_estimate},
-          {"loop_covariance_inflation", options.loop_covariance_inflation},
-          {"loop_min_translation_sigma_steps", options.loop_min_translation_sigma_steps},
-          {"loop_min_rotation_sigma_rad", options.loop_min_rotation_sigma_rad},
-          {"loop_min_scale_sigma", options.loop_min_scale_sigma},
-          {"use_mapped_pixels", options.use_mapped_pixels},
-          {"raw_association_max_dt", options.raw_association_max_dt},
-          {"skip_unreadable_frames", options.skip_unreadable_frames}};
+  return dump;
 }
 
 }  // namespace sparseloop

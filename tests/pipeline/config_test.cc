@@ -3,6 +3,8 @@
 #include "sparseloop/core/error.h"
 
 #include <fstream>
+#include <regex>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -112,6 +114,100 @@ TEST(Config, NumberOverflowIsAFileError) {
   } catch (const FileError& e) {
     EXPECT_EQ(e.file(), path.string());
     EXPECT_NE(std::string(e.what()).find("overflow"), std::string::npos) << e.what();
+  }
+}
+
+// A value of `key` other than its default that the options' Check() accepts.
+nlohmann::json OtherValue(const ConfigKey& key, const nlohmann::json& current) {
+  if (!key.choices.empty()) {
+    return key.choices[0] == current.get<std::string>() ? key.choices[1] : key.choices[0];
+  }
+  if (current.is_null()) return {0.0, 0.0, 1.0};  // plane_normal
+  if (current.is_boolean()) return !current.get<bool>();
+  if (current.is_number_integer()) return current.get<int64_t>() + 1;
+  const double d = current.get<double>();
+  return d == 0.0 ? 0.5 : 0.9 * d;
+}
+
+// Every registered key is read by ApplyConfig and written back by ConfigToJson, at its path.
+TEST(Config, EveryRegisteredKeyIsReadAndWritten) {
+  const nlohmann::json defaults = ConfigToJson(PipelineOptions{});
+  ASSERT_GT(ConfigKeys().size(), 100u);
+  for (const ConfigKey& key : ConfigKeys()) {
+    SCOPED_TRACE(key.path);
+    const auto pointer =
+        nlohmann::json::json_pointer("/" + std::regex_replace(key.path, std::regex(R"(\.)"), "/"));
+    const nlohmann::json before = defaults.contains(pointer) ? defaults[pointer] : nlohmann::json();
+    EXPECT_EQ(before.is_null(), key.path == "detector.search.plane_normal");
+    nlohmann::json config;
+    config[pointer] = OtherValue(key, before);
+    PipelineOptions o;
+    ASSERT_NO_THROW(ApplyConfig(config, "cfg.json", &o)) << config.dump();
+    EXPECT_EQ(key.get(o), config[pointer]);
+    EXPECT_EQ(ConfigToJson(o)[pointer], config[pointer]);
+    EXPECT_FALSE(key.help.empty());
+  }
+}
+
+// `config --dump`: the defaults plus a "doc" line per key; read back unchanged, from a file too.
+TEST(Config, DumpRoundTripsAndDocumentsEveryKey) {
+  const PipelineOptions defaults;
+  const nlohmann::json dump = DumpConfig(defaults, "");
+  EXPECT_EQ(dump["doc"].size(), ConfigKeys().size());
+  for (const ConfigKey& key : ConfigKeys()) EXPECT_EQ(dump["doc"][key.path], key.Doc());
+  const auto path = test::TempDir() / "dump.json";
+  std::ofstream(path) << dump.dump(2);
+  PipelineOptions read;
+  read.detector.check_every = 9;
+  LoadConfigFile(path, &read);
+  EXPECT_EQ(ConfigToJson(read), ConfigToJson(defaults));
+  nlohmann::json without_doc = dump;
+  without_doc.erase("doc");
+  EXPECT_EQ(without_doc, ConfigToJson(defaults));
+
+  // detect's dump: the detector object only, read back the same way.
+  const nlohmann::json detect = DumpConfig(defaults, "detector");
+  EXPECT_EQ(detect.size(), 2u);  // "detector", "doc"
+  EXPECT_EQ(detect["detector"], ConfigToJson(defaults)["detector"]);
+  for (const auto& [path, doc] : detect["doc"].items()) EXPECT_EQ(path.rfind("detector.", 0), 0u);
+  PipelineOptions detect_read;
+  ApplyConfig(detect, "detect.json", &detect_read);
+  EXPECT_EQ(ConfigToJson(detect_read), ConfigToJson(defaults));
+}
+
+TEST(Config, UnknownKeysAreRefusedAtEveryLevel) {
+  for (const char* text :
+       {R"({"detectr": {}})", R"({"detector": {"local_map": {"windw": 1}}})",
+        R"({"optimizer": {"pcm": {"confidence": 0.9}}})", R"({"detector": {"doc": {}}})"}) {
+    SCOPED_TRACE(text);
+    EXPECT_NE(ErrorOf(nlohmann::json::parse(text)).find("a known configuration key"),
+              std::string::npos);
+  }
+  EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"local_map": 3}})"))
+                .find("a JSON object for \"detector.local_map\""),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"doc": 3})")).find("a JSON object for \"doc\""),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"check_every": 4294967297}})"))
+                .find("an integer in"),
+            std::string::npos);
+  EXPECT_EQ(ErrorOf(nlohmann::json::parse(R"({"doc": {"anything": "ignored"}})")), "");
+}
+
+// docs/FORMATS.md ("Configuration") has one row per registered key with its default and doc, so
+// the table cannot go stale (regenerate it from `sparseloop config --dump`).
+TEST(Config, FormatsDocListsEveryKey) {
+  std::ifstream in(test::SourceDir() / "docs" / "FORMATS.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  for (const ConfigKey& key : ConfigKeys()) {
+    const nlohmann::json value = key.get(PipelineOptions{});
+    const std::string row = "| `" + key.path + "` | `" +
+                            (value.is_null() ? "unset" : value.dump()) + "` | " +
+                            std::regex_replace(key.Doc(), std::regex(R"(\|)"), R"(\|)") + " |\n";
+    EXPECT_NE(text.str().find(row), std::string::npos)
+        << "docs/FORMATS.md lacks the row\n"
+        << row << "(table: sparseloop config --dump)";
   }
 }
 

@@ -1,20 +1,48 @@
 #pragma once
 // JSON configuration of the whole pipeline (detector, search area, matching, verification, pose
 // graph). Strict: an unknown key, a wrong type or an invalid value is an error naming the file and
-// the key, so a typo never silently falls back to a default. Every key is optional; see
-// docs/FORMATS.md ("Configuration") for the list. Example:
+// the key, so a typo never silently falls back to a default. Every key is optional. Each key is
+// registered once (ConfigKeys() in config.cc): reading, writing, `sparseloop config --dump` and
+// the table of docs/FORMATS.md ("Configuration") all come from that list. Example:
 //   {"detector": {"features": {"max_features": 50, "ranking": "response"},
 //                 "search": {"strategy": "paper", "drift_tolerance": 0.02},
 //                 "check_every": 1},
 //    "optimizer": {"rejection": "pcm", "loop_loss": "cauchy"}}
 #include <filesystem>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "sparseloop/pipeline/pipeline.h"
 
 namespace sparseloop {
+
+// What a configuration value should have been ("an integer", "one of a|b") and what it was.
+struct ConfigValueError {
+  std::string expected;
+  std::string got;
+};
+
+// One configuration key: its dotted path in the JSON tree, what it holds and how to read and write
+// it on PipelineOptions. The value bounds are those of the options' Check(), stated in `help`.
+struct ConfigKey {
+  std::string path;                  // e.g. "detector.local_map.window"
+  std::string type;                  // "boolean", "integer", "number", "string", "[x, y, z]"
+  std::string unit;                  // e.g. "keyframes", "px", "deg"; empty when unitless
+  std::string help;                  // one line, with the bounds
+  std::vector<std::string> choices;  // the accepted names of an enum key (type "string")
+  // The value as JSON; null when unset (only detector.search.plane_normal can be).
+  std::function<nlohmann::json(const PipelineOptions&)> get;
+  // Sets the value; throws ConfigValueError when the JSON value does not fit.
+  std::function<void(const nlohmann::json&, PipelineOptions*)> set;
+  // "keyframes each side ... (>= 0) [keyframes]": help, unit and choices on one line.
+  std::string Doc() const;
+};
+
+// Every configuration key, in documentation order (built once).
+const std::vector<ConfigKey>& ConfigKeys();
 
 // Applies the keys of `config` on top of `options`. Throws FileError(source, 0, ...) naming the
 // offending key path (e.g. "detector.features.max_features") on an unknown key or wrong type, and
@@ -24,7 +52,12 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source, Pipeli
 // Reads a JSON file and applies it (FileError with line on a JSON syntax error).
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options);
 
-// The full effective configuration (every key), for summary.json and --print-config.
+// The full effective configuration (every key), for summary.json.
 nlohmann::json ConfigToJson(const PipelineOptions& options);
+
+// `sparseloop config --dump`: ConfigToJson(options) restricted to the keys under `scope` ("" =
+// all, "detector" = the detector object), plus a root "doc": {path: ConfigKey::Doc()} for those
+// keys. ApplyConfig reads it back unchanged (it ignores a root "doc" object).
+nlohmann::json DumpConfig(const PipelineOptions& options, const std::string& scope);
 
 }  // namespace sparseloop
