@@ -25,7 +25,7 @@ TEST(Cli, UnknownCommandExits2) {
 // Every subcommand prints its own help (options listed) to stdout and exits 0.
 TEST(Cli, EverySubcommandHelpExits0WithOptions) {
   for (const char* command :
-       {"bench", "convert", "detect", "eval", "optimize", "render", "report", "run"}) {
+       {"bench", "config", "convert", "detect", "eval", "optimize", "render", "report", "run"}) {
     SCOPED_TRACE(command);
     const CliResult r = RunCli({command, "--help"});
     EXPECT_EQ(r.exit_code, 0) << r.err;

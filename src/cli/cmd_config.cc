@@ -1,0 +1,30 @@
+// sparseloop config --dump [detect|run]: the default --config JSON, every key with a one-line doc.
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "cli/cli_util.h"
+#include "cli/command.h"
+#include "sparseloop/pipeline/config.h"
+
+namespace sparseloop::cli {
+
+int RunConfig(int argc, char** argv) {
+  CLI::App app{
+      "Print the default --config JSON of a command; \"doc\" holds one line per key "
+      "(--config reads the output back unchanged; docs/FORMATS.md, Configuration)"};
+  bool dump = false;
+  std::string command = "run";
+  app.add_flag("--dump", dump, "print the defaults and the doc of every key")->required();
+  app.add_option("command", command, "detect (the detector keys) | run (every key)")
+      ->check(CLI::IsMember({"detect", "run"}))
+      ->default_str("run");
+  Parse(app, argc, argv);
+  // `detect` reads the "detector" object of --config, `run` every key.
+  std::cout << DumpConfig(PipelineOptions{}, command == "detect" ? "detector" : "").dump(2) << "\n";
+  return 0;
+}
+
+SPARSELOOP_REGISTER_COMMAND("config", "print the default configuration (--config JSON)", RunConfig);
+
+}  // namespace sparseloop::cli
