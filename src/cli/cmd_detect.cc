@@ -78,11 +78,16 @@ int RunDetect(int argc, char** argv) {
   if (!poses.empty()) dataset_options.poses = poses;
   const Dataset dataset = OpenDataset(dataset_spec, dataset_options);
   SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", dataset_spec);
-  const bool have_poses = dataset.has_gt();
+  // Raw poses come only from --poses: a dataset's own ground truth (KITTI poses.txt, a render's
+  // poses.txt) is never searched with as if a vSLAM had produced it (issue #21).
+  const bool have_poses = !poses.empty() && dataset.has_gt();
   if (!have_poses) {
     if (overrides.search.empty()) {
       options.search.strategy = SearchStrategy::kGlobal;
-      Logger().info("no poses for '{}': using the global search area", dataset_spec);
+      Logger().warn("no --poses for '{}': no raw poses, using the global search area{}",
+                    dataset_spec,
+                    dataset.has_gt() ? " (the dataset's ground truth is not used as raw poses)"
+                                     : "");
     } else {
       SL_CHECK_MSG(options.search.strategy == SearchStrategy::kGlobal,
                    "--search {} needs poses (--poses FILE); without poses use --search global",
@@ -120,7 +125,7 @@ int RunDetect(int argc, char** argv) {
     input.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
     if (input.image.empty()) throw FileError(frame.image_path.string(), 0, "a readable image");
     input.intrinsics = dataset.intrinsics;
-    if (frame.gt_world_from_cam)
+    if (have_poses && frame.gt_world_from_cam)
       input.world_from_cam = Sim3d(*frame.gt_world_from_cam);
     else if (have_poses)
       SL_CHECK_MSG(false, "frame {} has no pose while others do", frame.index);

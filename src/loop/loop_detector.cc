@@ -54,6 +54,12 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
                "min_path_ratio must be >= 0, got {}", min_path_ratio);
+  SL_CHECK_MSG(overlap_gap >= 0 && overlap_max_walk >= 0,
+               "overlap_gap and overlap_max_walk must be >= 0, got {} and {}", overlap_gap,
+               overlap_max_walk);
+  SL_CHECK_MSG(overlap_match_factor >= 0 && overlap_relative >= 0 && overlap_relative <= 1,
+               "overlap_match_factor must be >= 0 and overlap_relative in [0, 1], got {} and {}",
+               overlap_match_factor, overlap_relative);
   SL_CHECK_MSG(consistency_base_deg >= 0 && consistency_per_keyframe_deg >= 0 &&
                    two_view_consistency_per_keyframe_deg >= 0 &&
                    consistency_max_deg >= consistency_base_deg,
@@ -214,6 +220,20 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
       if (along < options_.min_path_ratio * chord) continue;
     }
     candidates.push_back(id);
+  }
+  if (!query.has_pose && options_.overlap_gap > 0 && !candidates.empty()) {
+    const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+    const size_t start = OverlapStart(query, index > exclude ? index - exclude : 0);
+    result.overlap_excluded = 0;
+    std::vector<int64_t> kept;
+    for (int64_t id : candidates) {
+      if (index_of_.at(id) < start) {
+        kept.push_back(id);
+      } else {
+        ++result.overlap_excluded;
+      }
+    }
+    candidates = std::move(kept);
   }
   if (options_.retrieval == CandidateRetrieval::kAnn)
     candidates = RetrieveByVotes(query, index, candidates);  // index insert + vote query
@@ -586,6 +606,26 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   return v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3
              ? v
              : none;
+}
+
+size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
+  const double floor = options_.overlap_match_factor * options_.EffectiveMinMatches();
+  double threshold = floor;
+  size_t start = exclude_end;  // keyframes [start, query) are excluded
+  int misses = 0;
+  int walked = 0;
+  for (size_t k = exclude_end; k-- > 0 && walked < options_.overlap_max_walk; ++walked) {
+    const double matches = static_cast<double>(
+        MatchDescriptors(query.descriptors, records_[k].descriptors, options_.match).size());
+    if (walked == 0) threshold = std::max(floor, options_.overlap_relative * matches);
+    if (matches >= threshold) {
+      start = k;
+      misses = 0;
+    } else if (++misses >= options_.overlap_gap) {
+      break;
+    }
+  }
+  return start;
 }
 
 LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,

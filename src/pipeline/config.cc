@@ -284,6 +284,15 @@ void AddDetectorKeys(KeyList& k) {
         "inlier floor grows as ceil(fraction x K) [0, 1]");
   k.Add(d + "min_path_ratio", SL_FIELD(detector.min_path_ratio), "ratio",
         "path between candidate and query >= ratio x their distance (needs poses; 0: off)");
+  k.Add(d + "overlap_gap", SL_FIELD(detector.overlap_gap), "keyframes",
+        "no pose: keyframes still sharing the scene with the query are excluded until this "
+        "many in a row do not (0: off)");
+  k.Add(d + "overlap_max_walk", SL_FIELD(detector.overlap_max_walk), "keyframes",
+        "no pose: at most this many keyframes matched by the overlap walk (>= 0)");
+  k.Add(d + "overlap_match_factor", SL_FIELD(detector.overlap_match_factor), "factor",
+        "no pose: overlap needs this x the match floor (>= 0)");
+  k.Add(d + "overlap_relative", SL_FIELD(detector.overlap_relative), "fraction",
+        "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
   k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
         "reject loops whose rotation disagrees with the pose prior");
   k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",

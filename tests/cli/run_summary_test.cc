@@ -118,9 +118,14 @@ TEST(CliRunSummary, DetectSaysWhyNothingWasFound) {
   EXPECT_NE(r.out.find("no_candidates 10"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--exclude-recent 10"), std::string::npos) << r.out;
 
+  // The overlap walk (detector.overlap_gap) would exclude these frames too: one continuous
+  // 10-frame stretch shares its scene throughout; switched off to see --exclude-recent alone.
+  const fs::path config = dir / "no_overlap.json";
+  std::ofstream(config) << R"({"detector": {"overlap_gap": 0}})";
   const CliResult fixed =
       RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--exclude-recent", "2",
-              "--min-path-ratio", "0", "--out", (dir / "b").string()});
+              "--min-path-ratio", "0", "--config", config.string(), "--out",
+              (dir / "b").string()});
   ASSERT_EQ(fixed.exit_code, 0) << fixed.err;
   const auto fixed_summary = ReadJson(dir / "b" / "summary.json");
   EXPECT_EQ(fixed_summary["config"]["search"]["exclude_recent"].get<int>(), 2);

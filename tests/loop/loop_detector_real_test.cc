@@ -115,8 +115,10 @@ class KittiNoLoop : public ::testing::Test {
     images_ = nullptr;
     poses_ = nullptr;
   }
-  static int CountLoops(const std::vector<Sim3d>& poses) {
-    LoopDetector detector(LoopDetector::Options{});
+  // `poses` empty: no poses, global search (default options otherwise).
+  static int CountLoops(const std::vector<Sim3d>& poses, LoopDetector::Options options = {}) {
+    if (poses.empty()) options.search.strategy = SearchStrategy::kGlobal;
+    LoopDetector detector(options);
     int loops = 0;
     for (size_t i = 0; i < images_->size(); ++i) {
       KeyframeInput in;
@@ -124,7 +126,7 @@ class KittiNoLoop : public ::testing::Test {
       in.timestamp = static_cast<double>(in.id);  // keyframe timestamps must increase
       in.image = (*images_)[i];
       in.intrinsics = test::KittiIntrinsics();
-      in.world_from_cam = poses[i];
+      if (!poses.empty()) in.world_from_cam = poses[i];
       const LoopResult r = detector.Process(in);
       if (r.detected()) {
         ++loops;
@@ -162,6 +164,17 @@ TEST_F(KittiNoLoop, ZeroLoopsWithDriftedPoses) {
     poses.push_back(poses.back() * drift_step);
   }
   EXPECT_EQ(CountLoops(poses), 0);
+}
+
+// Without poses (issue #17): the keyframes that still share the scene with the query along the
+// recent path are not loops. With the fixed exclude_recent alone the same drive gave 107 false
+// loops (the road 11-25 keyframes back); the overlap walk (Options::overlap_gap) leaves 4, all at
+// the inlier floor (24-25 of 300: 36 -> 24, 55 -> 38, 109 -> 61, 155 -> 135). The issue's target
+// (zero) is not reached: a higher match floor for the walk removes them but also excludes the
+// castle ring closure (castle's unrelated views share 20-39 chance matches).
+TEST_F(KittiNoLoop, NearTimeLoopsWithoutPosesAreExcluded) {
+  SL_REQUIRE_DATA("kitti07_first160");
+  EXPECT_LE(CountLoops({}), 4);
 }
 
 // EuRoC pairs: tests/loop/euroc_pairs.h (shared with bench/detector_accuracy).

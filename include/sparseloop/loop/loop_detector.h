@@ -75,6 +75,9 @@ struct LoopResult {
   int64_t query_id = 0;   // the processed keyframe
   int64_t match_id = -1;  // best candidate (-1 when none was matched)
   int candidates = 0;     // keyframes in the search area after filtering, count
+  // Query without a pose: search-area keyframes dropped because they still share the scene with
+  // the query (Options::overlap_gap), count; 0 otherwise.
+  int overlap_excluded = 0;
   int matches = 0;        // descriptor matches with match_id, count
   int inliers = 0;        // geometric inliers with match_id, count
   double score = 0.0;     // inliers / K (K = options.features.max_features), in [0, 1]
@@ -139,6 +142,19 @@ class LoopDetector {
     // min_path_ratio * straight-line distance (scale-free; rejects the recent, still-overlapping
     // stretch of a forward motion). Needs poses; 0 disables. ratio >= 0.
     double min_path_ratio = 3.0;
+    // Without a pose (global search), "far along the path" cannot be measured: a keyframe that
+    // still shares the scene with the query is not a loop (kitti07_first160, a straight drive:
+    // 106 of 107 detections were the road 11-25 keyframes back). Walking back from the first
+    // keyframe older than search.exclude_recent, every keyframe whose descriptors still match
+    // the query's is excluded too, until `overlap_gap` keyframes in a row do not (a blurred
+    // frame does not end the overlap). "Still match": at least overlap_match_factor x the match
+    // floor (EffectiveMinMatches; unrelated frames reach 15-39 matches of 300 on castle and
+    // KITTI by chance) and overlap_relative x the first walked keyframe's count (the overlap
+    // decays from there). At most overlap_max_walk keyframes are matched. overlap_gap 0 disables.
+    int overlap_gap = 4;
+    int overlap_max_walk = 300;
+    double overlap_match_factor = 3.0;
+    double overlap_relative = 0.4;
     // Pose-prior consistency: |angle(R_verified, R_prior)| <= min(max, base + per_keyframe * n),
     // n = keyframes of odometry between the candidate and the query along the loop graph: the
     // index difference, or shorter through an accepted loop (|query - loop query| + |loop match -
@@ -286,6 +302,10 @@ class LoopDetector {
   std::vector<KeyframeRecord> records_;
   std::vector<double> path_length_;  // cumulative path length at each keyframe (pose units)
   std::unordered_map<int64_t, size_t> index_of_;
+  // The index below which keyframes no longer share the scene with the query (Options::
+  // overlap_gap), for a query without a pose; `exclude_end` = first index excluded by
+  // search.exclude_recent. Returns the first index that may be a candidate's upper bound + 1.
+  size_t OverlapStart(const KeyframeRecord& query, size_t exclude_end) const;
   // Every loop this detector accepted: record indices and the verified relative rotation.
   struct AcceptedLoop {
     size_t query = 0;
