@@ -34,6 +34,7 @@ LoopDetector::Options GlobalNoExclusion() {
   o.search.strategy = SearchStrategy::kGlobal;
   o.search.exclude_recent = 0;
   o.min_path_ratio = 0;
+  o.overlap_gap = 0;  // no overlap walk either: these tests revisit the frame just before
   return o;
 }
 

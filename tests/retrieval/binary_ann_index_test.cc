@@ -316,6 +316,7 @@ LoopDetector::Options FullGlobal(CandidateRetrieval retrieval) {
   o.search.strategy = SearchStrategy::kGlobal;
   o.search.exclude_recent = 3;
   o.min_path_ratio = 0;
+  o.overlap_gap = 0;  // exclude_recent alone decides what is recent here
   o.check_consistency = false;
   o.retrieval = retrieval;
   o.ann.max_candidates = 2;
