@@ -27,8 +27,8 @@
 #include <fmt/format.h>
 
 #include "loop_harness.h"
-#include "sparseloop/eval/metrics.h"
 #include "sparseloop/core/timer.h"
+#include "sparseloop/eval/metrics.h"
 #include "sparseloop/posegraph/g2o.h"
 
 namespace sparseloop {
@@ -60,12 +60,10 @@ std::string DriftCaseJson(const test::DriftCase& c, uint64_t seed) {
   const auto r_plain = test::CorrectAndScore(c.raw, c.gt, dirty.loops, plain, c.odometry);
   // The same true loops on the metric vertex types (issue #4: SE(3) for metric input, 4-DoF for
   // gravity-aligned VIO): the EuRoC VIO is metric, but its scale is off by a few per cent.
-  const auto r_se3 =
-      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
-                            VertexType::kSe3);
-  const auto r_4dof =
-      test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
-                            VertexType::kFourDof);
+  const auto r_se3 = test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
+                                           VertexType::kSe3);
+  const auto r_4dof = test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{},
+                                            c.odometry, VertexType::kFourDof);
   std::vector<bool> rejected(dirty.loops.size(), false);
   for (size_t k : r_dirty.summary.rejected_loops) rejected[k] = true;
   size_t num_false = 0, accepted_true = 0, accepted_false = 0;
@@ -114,8 +112,8 @@ int Oracle(const std::filesystem::path& raw_path, const std::filesystem::path& g
   const Trajectory raw = ReadTrajectory(raw_path);
   const Trajectory gt = ReadTrajectory(gt_path);
   if (raw.size() != gt.size() || raw.size() < 2) {
-    std::cerr << "posegraph_accuracy --oracle: " << raw_path << " has " << raw.size()
-              << " poses, " << gt_path << " " << gt.size() << " (need the same number, >= 2)\n";
+    std::cerr << "posegraph_accuracy --oracle: " << raw_path << " has " << raw.size() << " poses, "
+              << gt_path << " " << gt.size() << " (need the same number, >= 2)\n";
     return 2;
   }
   std::vector<Sim3d> raw_kf, gt_kf;

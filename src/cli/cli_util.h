@@ -80,7 +80,9 @@ using FlagNames = std::vector<std::pair<std::string, std::string>>;
 // "loss_scale must be > 0, got -1" -> "--loss-scale must be > 0, got -1". Unchanged when it
 // mentions none.
 inline std::string NameFlagsIn(const std::string& message, const FlagNames& names) {
-  const auto is_word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  const auto is_word = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  };
   for (const auto& [field, flag] : names) {
     for (size_t pos = message.find(field); pos != std::string::npos;
          pos = message.find(field, pos + 1)) {

@@ -84,10 +84,9 @@ int RunDetect(int argc, char** argv) {
   if (!have_poses) {
     if (overrides.search.empty()) {
       options.search.strategy = SearchStrategy::kGlobal;
-      Logger().warn("no --poses for '{}': no raw poses, using the global search area{}",
-                    dataset_spec,
-                    dataset.has_gt() ? " (the dataset's ground truth is not used as raw poses)"
-                                     : "");
+      Logger().warn(
+          "no --poses for '{}': no raw poses, using the global search area{}", dataset_spec,
+          dataset.has_gt() ? " (the dataset's ground truth is not used as raw poses)" : "");
     } else {
       SL_CHECK_MSG(options.search.strategy == SearchStrategy::kGlobal,
                    "--search {} needs poses (--poses FILE); without poses use --search global",
@@ -210,7 +209,8 @@ int RunDetect(int argc, char** argv) {
   // Why nothing (or little) was found: the status of every frame, counted.
   std::string statuses;
   for (const auto& [status, count] : summary["status_counts"].items()) {
-    if (count.get<int>() > 0) statuses += fmt::format("{}{} {}", statuses.empty() ? "" : ", ", status, count.get<int>());
+    if (count.get<int>() > 0)
+      statuses += fmt::format("{}{} {}", statuses.empty() ? "" : ", ", status, count.get<int>());
   }
   std::cout << "frames by status: " << statuses << " (per frame: frames.csv)\n";
   if (loops.empty() && summary["status_counts"]["no_candidates"].get<int>() ==

@@ -121,7 +121,8 @@ int RunEval(int argc, char** argv) {
                "--loops needs ground-truth loops: give --gt-loops FILE or --derive-loops DIST,GAP");
   // Trajectory metrics need --gt and --est; loops alone need --loops and --gt-loops.
   const bool trajectories = !est_path.empty();
-  SL_CHECK_MSG(!trajectories || !gt_path.empty(), "--est needs --gt (the ground truth to compare with)");
+  SL_CHECK_MSG(!trajectories || !gt_path.empty(),
+               "--est needs --gt (the ground truth to compare with)");
   SL_CHECK_MSG(trajectories || !loops_path.empty(),
                "nothing to evaluate: give --gt and --est (trajectory metrics), and/or --loops with "
                "--gt-loops (loop precision/recall; without trajectories)");

@@ -38,7 +38,8 @@ int RunOptimize(int argc, char** argv) {
       ->check(IntegerAtLeast(1))
       ->capture_default_str();
   bool quiet = false;
-  app.add_flag("--quiet", quiet, "No progress on stderr (reading, solving, one line per iteration)");
+  app.add_flag("--quiet", quiet,
+               "No progress on stderr (reading, solving, one line per iteration)");
   Parse(app, argc, argv);
   CheckOutputFileFlag("--out", out);
 
@@ -60,10 +61,11 @@ int RunOptimize(int argc, char** argv) {
   if (!quiet) Logger().info("optimize: reading {}", in);
   PoseGraph graph = ReadG2o(in);
   if (!quiet) {
-    Logger().info("optimize: {} vertices, {} edges read in {:.1f} s; solving (at most {} "
-                  "iterations)",
-                  graph.num_vertices(), graph.edges().size(), timer.ElapsedMs() / 1000.0,
-                  options.max_iterations);
+    Logger().info(
+        "optimize: {} vertices, {} edges read in {:.1f} s; solving (at most {} "
+        "iterations)",
+        graph.num_vertices(), graph.edges().size(), timer.ElapsedMs() / 1000.0,
+        options.max_iterations);
   }
   options.log_progress = !quiet;
   const PoseGraphSummary summary = graph.Optimize(options);

@@ -194,21 +194,21 @@ int RunRender(int argc, char** argv) {
   // render.json: what was rendered, so a --start / --step slice is known from the folder itself
   // (frame k of the folder is pose start + k * step of the trajectory).
   const auto write_render_json = [&] {
-    nlohmann::json j = {{"command", "render"},
-                        {"world", world_name},
-                        {"trajectory", trajectory_path.empty() ? nlohmann::json(nullptr)
-                                                               : nlohmann::json(trajectory_path)},
-                        {"plan", trajectory_path.empty() && world_name == "aerial"
-                                     ? nlohmann::json(plan_name)
-                                     : nlohmann::json(nullptr)},
-                        {"start", start},
-                        {"step", step},
-                        {"frames", gt.size()},
-                        {"seed", seed},
-                        {"raw", raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(raw_path)},
-                        {"drift", drift_scale},
-                        {"photometric", photometric_scale},
-                        {"poses_only", poses_only}};
+    nlohmann::json j = {
+        {"command", "render"},
+        {"world", world_name},
+        {"trajectory",
+         trajectory_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(trajectory_path)},
+        {"plan", trajectory_path.empty() && world_name == "aerial" ? nlohmann::json(plan_name)
+                                                                   : nlohmann::json(nullptr)},
+        {"start", start},
+        {"step", step},
+        {"frames", gt.size()},
+        {"seed", seed},
+        {"raw", raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(raw_path)},
+        {"drift", drift_scale},
+        {"photometric", photometric_scale},
+        {"poses_only", poses_only}};
     WriteFileAtomically(std::filesystem::path(out_dir) / "render.json",
                         [&](std::ostream& os) { os << j.dump(2) << "\n"; });
   };

@@ -4,14 +4,14 @@
 
 #include <algorithm>
 #include <chrono>
-#include <fstream>
 #include <cmath>
+#include <fstream>
 #include <iomanip>
 #include <map>
 #include <sstream>
 
-#include "cli/cli_util.h"
 #include <fmt/ranges.h>
+#include "cli/cli_util.h"
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
@@ -83,7 +83,8 @@ CameraIntrinsics ParseIntrinsicsFlag(const std::string& text) {
 
 void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* o) {
   const LoopDetector::Options defaults;
-  app.add_option("-K,--features", o->k, "Informative features kept per keyframe (overrides --config)")
+  app.add_option("-K,--features", o->k,
+                 "Informative features kept per keyframe (overrides --config)")
       ->check(IntegerAtLeast(1))
       ->default_str(std::to_string(defaults.features.max_features));
   app.add_option("--search", o->search,
@@ -203,10 +204,10 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
     if (is_own(name) && fs::remove(fs::path(out) / name, ec)) removed.push_back(name);
   }
   if (!removed.empty()) {
-    Logger().info("--out {}: removed {} file{} of the previous `{}` ({}), so the folder holds "
-                  "this run only",
-                  out, removed.size(), removed.size() == 1 ? "" : "s", command,
-                  fmt::join(removed, ", "));
+    Logger().info(
+        "--out {}: removed {} file{} of the previous `{}` ({}), so the folder holds "
+        "this run only",
+        out, removed.size(), removed.size() == 1 ? "" : "s", command, fmt::join(removed, ", "));
   }
 }
 

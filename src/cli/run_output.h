@@ -3,8 +3,8 @@
 // (loops.csv, timings.csv, summary.json fields). Formatting only; the algorithms live in the
 // library.
 #include <cstdio>
-#include <map>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -34,9 +34,9 @@ struct DetectorFlags {
   std::string poses;       // raw vSLAM poses
   std::string intrinsics;  // fx,fy,cx,cy
   DetectorOverrides detector;
-  std::string config;      // JSON configuration file
-  std::string out;         // output directory
-  bool quiet = false;      // no progress line
+  std::string config;  // JSON configuration file
+  std::string out;     // output directory
+  bool quiet = false;  // no progress line
 };
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* flags);

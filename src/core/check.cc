@@ -9,8 +9,8 @@ namespace internal {
 void ThrowCheckFailure(const char* file, int line, const char* condition,
                        const std::string& message) {
   // Developers get the expression and the location; users only the readable message.
-  Logger().debug("check failed: {} ({}:{}){}{}", condition, file, line,
-                 message.empty() ? "" : ": ", message);
+  Logger().debug("check failed: {} ({}:{}){}{}", condition, file, line, message.empty() ? "" : ": ",
+                 message);
   throw CheckError(message.empty() ? fmt::format("check failed: {}", condition) : message,
                    condition, file, line);
 }

@@ -484,17 +484,12 @@ void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeReco
     const DescriptorMatch& m = matches[static_cast<size_t>(i)];
     const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
     const CompactKeypoint& kq = query.keypoints[static_cast<size_t>(m.query)];
-    points.push_back(double(map.depths[static_cast<size_t>(m.train)]) *
-                     Eigen::Vector3d(k.x, k.y, 1.0));
-    observed.emplace_back(kq.x, kq.y);
-  }
-  for (int i : v->inlier_matches) {
-    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
-    const float zq = query.depths[static_cast<size_t>(m.query)];
     const float zm = map.depths[static_cast<size_t>(m.train)];
+    const float zq = query.depths[static_cast<size_t>(m.query)];
+    points.push_back(double(zm) * Eigen::Vector3d(k.x, k.y, 1.0));
+    observed.emplace_back(kq.x, kq.y);
     if (zq <= 0 || zm <= 0) continue;
-    const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
-    const double z = (query_from_match * (double(zm) * Eigen::Vector3d(k.x, k.y, 1.0))).z();
+    const double z = (query_from_match * points.back()).z();
     if (z > 0) log_ratio.push_back(std::log(z / zq));
   }
   if (static_cast<int>(log_ratio.size()) < kMinScalePairs) return;
@@ -629,7 +624,7 @@ size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_en
 }
 
 LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
-                                                          size_t match_index) const {
+                                                           size_t match_index) const {
   auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
   auto rotation = [&](size_t i) -> const Eigen::Quaterniond& {
     return records_[i].world_from_cam.rotation;
@@ -752,17 +747,16 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     // ambiguity: the gate may be as wide as the odometry between the two places allows. A
     // two-view pose can be the wrong one of two supported solutions (castle 29 -> 02: 27 deg
     // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
-    const bool from_3d = v.pose_kind == RelativePoseKind::kSE3Metric ||
-                         v.pose_kind == RelativePoseKind::kSim3;
+    const bool from_3d =
+        v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3;
     const GraphPrior graph_prior = query.has_pose && match.has_pose
                                        ? PriorAlongLoopGraph(query_index, match_index)
                                        : GraphPrior{};
     const double tolerance_deg = std::min(
         options_.consistency_max_deg,
-        options_.consistency_base_deg +
-            (from_3d ? options_.consistency_per_keyframe_deg
-                     : options_.two_view_consistency_per_keyframe_deg) *
-                static_cast<double>(graph_prior.keyframes));
+        options_.consistency_base_deg + (from_3d ? options_.consistency_per_keyframe_deg
+                                                 : options_.two_view_consistency_per_keyframe_deg) *
+                                            static_cast<double>(graph_prior.keyframes));
     if (v.success) {
       trial_status = LoopStatus::kDetected;
       if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {

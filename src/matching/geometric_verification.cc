@@ -235,8 +235,9 @@ void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
   const PoseInformationOptions info_options =
       options.InformationOptions(options.threshold_px / threshold);
   result->information =
-      m_depth ? PnpInformationPointsInMatch(points, observed, result->match_from_query, info_options)
-              : PnpInformationPointsInQuery(points, observed, result->match_from_query, info_options);
+      m_depth
+          ? PnpInformationPointsInMatch(points, observed, result->match_from_query, info_options)
+          : PnpInformationPointsInQuery(points, observed, result->match_from_query, info_options);
 }
 
 // The matches of a pair without depths as normalised image points, both as OpenCV points (for
@@ -386,8 +387,8 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
         q_in.push_back(src[static_cast<size_t>(i)]);
         m_in.push_back(dst[static_cast<size_t>(i)]);
       }
-      result.information = Sim3Information(q_in, m_in, result.match_from_query,
-                                           options.InformationOptions(focal));
+      result.information =
+          Sim3Information(q_in, m_in, result.match_from_query, options.InformationOptions(focal));
       result.success = accept(result.inliers);
     }
     if (result.success) return result;

@@ -130,8 +130,7 @@ LoopConstraint MakeLoopConstraint(const LoopResult& loop, const Sim3d& raw_world
     const double fs = options.loop_min_scale_sigma;
     Vector7d floor2;
     floor2 << ft * ft, ft * ft, ft * ft, fr * fr, fr * fr, fr * fr, fs * fs;
-    const Matrix7d capped =
-        omega * (Matrix7d::Identity() + floor2.asDiagonal() * omega).inverse();
+    const Matrix7d capped = omega * (Matrix7d::Identity() + floor2.asDiagonal() * omega).inverse();
     c.information = 0.5 * (capped + capped.transpose());
     c.weight = 1.0;
     return c;

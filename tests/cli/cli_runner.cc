@@ -9,6 +9,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <gtest/gtest.h>
+
 #include "test_util.h"
 
 namespace sparseloop::test {
@@ -63,6 +65,12 @@ const std::filesystem::path& RenderedLoopSequence() {
     return final_dir;
   }();
   return dir;
+}
+
+nlohmann::json ReadJson(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  return nlohmann::json::parse(in);
 }
 
 }  // namespace sparseloop::test

@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace sparseloop::test {
 
 struct CliResult {
@@ -19,5 +21,8 @@ CliResult RunCli(const std::vector<std::string>& args);
 // circuit --frames 60 --laps 2`: images, poses.txt GT, poses_raw.txt drifting raw poses), rendered
 // once per machine into the test temp root and shared read-only by the tests (about 7 s).
 const std::filesystem::path& RenderedLoopSequence();
+
+// A JSON file the CLI wrote (summary.json, eval --json); a test failure when it cannot be opened.
+nlohmann::json ReadJson(const std::filesystem::path& path);
 
 }  // namespace sparseloop::test

@@ -14,12 +14,6 @@
 namespace sparseloop::test {
 namespace {
 
-nlohmann::json ReadJson(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  EXPECT_TRUE(in.good()) << path;
-  return nlohmann::json::parse(in);
-}
-
 // RunCli() itself calls TempDir(), which empties the test's temp folder, so input fixtures live in
 // a sibling folder that RunCli does not touch.
 std::filesystem::path FixtureDir() {

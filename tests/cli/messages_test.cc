@@ -40,9 +40,8 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
     ExpectNamesTheFlag({command, "--dataset", images, "--poses", gt, "--intrinsics",
                         "-5,500,320,240", "--out", out},
                        "--intrinsics: fx must be positive and finite, got -5");
-    ExpectNamesTheFlag(
-        {command, "--dataset", images, "--poses", gt, "-K", "3", "--out", out},
-        "-K must be in [5, 10000], got 3");
+    ExpectNamesTheFlag({command, "--dataset", images, "--poses", gt, "-K", "3", "--out", out},
+                       "-K must be in [5, 10000], got 3");
     ExpectNamesTheFlag(
         {command, "--dataset", images, "--poses", gt, "--min-path-ratio", "-1", "--out", out},
         "--min-path-ratio must be >= 0, got -1");

@@ -96,9 +96,10 @@ TEST(RenderCli, StartSliceIsRecordedInRenderJson) {
   for (const bool poses_only : {true, false}) {
     SCOPED_TRACE(poses_only ? "--poses-only" : "full render");
     const auto out = OutDir(poses_only ? "poses_only" : "full");
-    std::vector<std::string> args = {"render", "--world", "aerial", "--frames", poses_only ? "30" : "8",
-                                     "--start", "5", "--step", "2", "--seed", "7", "--out",
-                                     out.string()};
+    std::vector<std::string> args = {
+        "render",  "--world", "aerial",    "--frames", poses_only ? "30" : "8",
+        "--start", "5",       "--step",    "2",        "--seed",
+        "7",       "--out",   out.string()};
     if (poses_only) args.push_back("--poses-only");
     const CliResult r = RunCli(args);
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -199,9 +200,9 @@ TEST(ReportCli, AgreesWithTheRunAndIsSelfContained) {
   const fs::path& seq = RenderedLoopSequence();
   ASSERT_FALSE(seq.empty());
   const auto run = OutDir("run");
-  CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
-                        (seq / "poses_raw.txt").string(), "--gt-loop-distance", "35", "--out",
-                        run.string()});
+  CliResult r =
+      RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+              (seq / "poses_raw.txt").string(), "--gt-loop-distance", "35", "--out", run.string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::ifstream in(run / "summary.json");
   const auto summary = nlohmann::json::parse(in);

@@ -17,11 +17,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-nlohmann::json ReadJson(const fs::path& p) {
-  std::ifstream in(p);
-  return nlohmann::json::parse(in);
-}
-
 // The rendered sequence without its ground truth: images, times and calibration only.
 fs::path SequenceWithoutGt(const fs::path& dir) {
   const fs::path& seq = RenderedLoopSequence();
@@ -39,8 +34,8 @@ TEST(CliRunFolder, RerunRemovesThePreviousRunsFilesAndSaysSo) {
   const auto dir = TempDir();
   const fs::path out = dir / "out";
   const std::string raw = (seq / "poses_raw.txt").string();
-  CliResult r = RunCli(
-      {"run", "--dataset", "kitti:" + seq.string(), "--poses", raw, "--out", out.string()});
+  CliResult r =
+      RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses", raw, "--out", out.string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* f : {"poses_gt.txt", "gt_loops.txt", "pr_curve.csv"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
@@ -48,8 +43,7 @@ TEST(CliRunFolder, RerunRemovesThePreviousRunsFilesAndSaysSo) {
 
   // Same folder, a dataset without GT: nothing of the GT run may stay for `report` to mix in.
   const fs::path nogt = SequenceWithoutGt(dir);
-  r = RunCli({"run", "--dataset", "kitti:" + nogt.string(), "--poses", raw, "--out",
-              out.string()});
+  r = RunCli({"run", "--dataset", "kitti:" + nogt.string(), "--poses", raw, "--out", out.string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* f : {"poses_gt.txt", "gt_loops.txt", "pr_curve.csv", "report.html"})
     EXPECT_FALSE(fs::exists(out / f)) << f << " left over from the previous run";
@@ -59,8 +53,8 @@ TEST(CliRunFolder, RerunRemovesThePreviousRunsFilesAndSaysSo) {
   EXPECT_FALSE(ReadJson(out / "summary.json").contains("loops_correct"));
 
   // `detect` into a `run` folder: not its own output, refused, and the folder is untouched.
-  r = RunCli({"detect", "--dataset", "kitti:" + nogt.string(), "--poses", raw, "--out",
-              out.string()});
+  r = RunCli(
+      {"detect", "--dataset", "kitti:" + nogt.string(), "--poses", raw, "--out", out.string()});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--out " + out.string()), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("sparseloop detect"), std::string::npos) << r.err;
@@ -87,16 +81,15 @@ TEST(CliRunFolder, ForeignFolderAndTheDatasetFolderAreRefused) {
   // foreign, and stays.
   fs::create_directories(dir / "with_config");
   std::ofstream(dir / "with_config" / "config.json") << R"({"detector": {"check_every": 1}})";
-  const CliResult with_config =
-      RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses", raw, "--config",
-              (dir / "with_config" / "config.json").string(), "--out",
-              (dir / "with_config").string()});
+  const CliResult with_config = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses", raw,
+                                        "--config", (dir / "with_config" / "config.json").string(),
+                                        "--out", (dir / "with_config").string()});
   EXPECT_EQ(with_config.exit_code, 0) << with_config.err;
   EXPECT_TRUE(fs::exists(dir / "with_config" / "config.json"));
   // --out = the dataset folder (here a copy without GT: the run would add GT-looking files).
   const fs::path nogt = SequenceWithoutGt(dir);
-  const CliResult r = RunCli({"run", "--dataset", "kitti:" + nogt.string() + "/", "--poses", raw,
-                              "--out", nogt.string()});
+  const CliResult r = RunCli(
+      {"run", "--dataset", "kitti:" + nogt.string() + "/", "--poses", raw, "--out", nogt.string()});
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("the dataset's"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(nogt / "trajectory_kitti.txt"));
@@ -107,10 +100,9 @@ TEST(CliRunFolder, RunLogsTheGtFileItEvaluates) {
   ASSERT_FALSE(seq.empty()) << "render failed";
   const auto dir = TempDir();
   const fs::path gt = seq / "poses_gt.txt";  // the dataset's own GT is poses.txt
-  const CliResult r =
-      RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
-              (seq / "poses_raw.txt").string(), "--gt", gt.string(), "--out",
-              (dir / "out").string()});
+  const CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                              (seq / "poses_raw.txt").string(), "--gt", gt.string(), "--out",
+                              (dir / "out").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("evaluating against --gt " + gt.string()), std::string::npos) << r.err;
   EXPECT_EQ(ReadJson(dir / "out" / "summary.json")["gt_file"].get<std::string>(), gt.string());
@@ -130,7 +122,7 @@ TEST(CliRunFolder, PositionsOnlyPosesOrGtFailAtTheStart) {
     const std::string poses =
         std::string(flag) == "--poses" ? positions : (seq / "poses_raw.txt").string();
     std::vector<std::string> args = {"run", "--dataset", "kitti:" + seq.string(), "--poses",
-                                     poses, "--out", (dir / "out").string()};
+                                     poses, "--out",     (dir / "out").string()};
     if (std::string(flag) == "--gt") args.insert(args.end(), {"--gt", positions});
     const CliResult r = RunCli(args);
     EXPECT_EQ(r.exit_code, 2) << r.err;

@@ -2,8 +2,8 @@
 // the per-frame status.
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <set>
+#include <sstream>
 #include <string>
 #include <utility>
 
@@ -18,11 +18,6 @@ namespace sparseloop::test {
 namespace {
 
 namespace fs = std::filesystem;
-
-nlohmann::json ReadJson(const fs::path& p) {
-  std::ifstream in(p);
-  return nlohmann::json::parse(in);
-}
 
 // Rows of a CSV as header-name -> value maps.
 std::vector<std::map<std::string, std::string>> ReadCsv(const fs::path& p) {
@@ -64,7 +59,8 @@ TEST(CliRunSummary, LoopChecksListEveryAcceptedLoop) {
   ASSERT_TRUE(checks.is_array());
   std::set<std::pair<int, int>> accepted;
   for (const auto& row : ReadCsv(out / "loops.csv"))
-    if (row.at("accepted") == "1") accepted.insert({std::stoi(row.at("query")), std::stoi(row.at("match"))});
+    if (row.at("accepted") == "1")
+      accepted.insert({std::stoi(row.at("query")), std::stoi(row.at("match"))});
   ASSERT_FALSE(accepted.empty());
   EXPECT_EQ(checks.size(), accepted.size());
   EXPECT_EQ(summary["accepted_loops"].get<size_t>(), accepted.size());
@@ -124,8 +120,7 @@ TEST(CliRunSummary, DetectSaysWhyNothingWasFound) {
   std::ofstream(config) << R"({"detector": {"overlap_gap": 0}})";
   const CliResult fixed =
       RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--exclude-recent", "2",
-              "--min-path-ratio", "0", "--config", config.string(), "--out",
-              (dir / "b").string()});
+              "--min-path-ratio", "0", "--config", config.string(), "--out", (dir / "b").string()});
   ASSERT_EQ(fixed.exit_code, 0) << fixed.err;
   const auto fixed_summary = ReadJson(dir / "b" / "summary.json");
   EXPECT_EQ(fixed_summary["config"]["search"]["exclude_recent"].get<int>(), 2);
@@ -166,9 +161,9 @@ TEST(CliRunSummary, LoopsCsvEndsWithImageNamesAndRunWritesFramesCsv) {
 TEST(CliRunSummary, EvalScoresLoopsWithoutTrajectories) {
   const fs::path& out = RunOnRenderedSequence();
   const auto dir = TempDir();
-  const CliResult r = RunCli({"eval", "--loops", (out / "loops.csv").string(), "--gt-loops",
-                              (out / "gt_loops.txt").string(), "--json",
-                              (dir / "m.json").string()});
+  const CliResult r =
+      RunCli({"eval", "--loops", (out / "loops.csv").string(), "--gt-loops",
+              (out / "gt_loops.txt").string(), "--json", (dir / "m.json").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto metrics = ReadJson(dir / "m.json");
   const auto summary = ReadJson(out / "summary.json");
@@ -188,9 +183,15 @@ TEST(CliRunSummary, GtRevisitsNeedPathBetweenTheFrames) {
   const auto dir = TempDir();
   // 40 m: the sequence's frames are ~18 m apart, so neighbours are within the GT loop distance.
   const auto run = [&](const std::string& name, std::vector<std::string> extra) {
-    std::vector<std::string> args = {"run", "--dataset", "kitti:" + seq.string(), "--poses",
-                                     (seq / "poses_raw.txt").string(), "--gt-loop-distance", "40",
-                                     "--out", (dir / name).string()};
+    std::vector<std::string> args = {"run",
+                                     "--dataset",
+                                     "kitti:" + seq.string(),
+                                     "--poses",
+                                     (seq / "poses_raw.txt").string(),
+                                     "--gt-loop-distance",
+                                     "40",
+                                     "--out",
+                                     (dir / name).string()};
     args.insert(args.end(), extra.begin(), extra.end());
     const CliResult r = RunCli(args);
     EXPECT_EQ(r.exit_code, 0) << r.err;

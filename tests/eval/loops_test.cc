@@ -171,8 +171,7 @@ TEST(DeriveGtLoops, MinPathExcludesTheSameStretchOfDriving) {
     p.frame = i;
     p.timestamp = i;
     // Frames 0..10 along x every 1 m, frame 11 back at (5, 0.5): path 10 + |(-5, 0.5)|.
-    p.world_from_cam.translation =
-        i <= 10 ? Eigen::Vector3d(i, 0, 0) : Eigen::Vector3d(5, 0.5, 0);
+    p.world_from_cam.translation = i <= 10 ? Eigen::Vector3d(i, 0, 0) : Eigen::Vector3d(5, 0.5, 0);
     t.poses.push_back(p);
   }
   GtLoopOptions options;
@@ -180,7 +179,7 @@ TEST(DeriveGtLoops, MinPathExcludesTheSameStretchOfDriving) {
   options.min_gap = 3;
   const auto all = DeriveGtLoops(t, options);
   EXPECT_EQ(std::count_if(all.begin(), all.end(), [](const LoopPair& p) { return p.query <= 10; }),
-            8);  // (3,0) .. (10,7): the same stretch of street
+            8);             // (3,0) .. (10,7): the same stretch of street
   options.min_path = 12.0;  // frame 11 has 15.02 - k metres of path back to frame k
   EXPECT_EQ(DeriveGtLoops(t, options), (std::vector<LoopPair>{{11, 2}, {11, 3}}));
   options.min_path = -1.0;

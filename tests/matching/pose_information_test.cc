@@ -6,8 +6,8 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "sparseloop/matching/geometric_verification.h"
 #include "sparseloop/matching/pose_information.h"
@@ -55,8 +55,9 @@ Scene MakeScene(const Sim3d& match_from_query, int n, double px, bool match_dept
 }
 
 Sim3d TruePose() {
-  return Sim3d(1.0, Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.1).normalized())),
-               Eigen::Vector3d(1.5, -0.2, 0.4));
+  return Sim3d(
+      1.0, Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.1).normalized())),
+      Eigen::Vector3d(1.5, -0.2, 0.4));
 }
 
 // Mean NEES of VerifyPair's estimate over `trials` scenes.
@@ -81,7 +82,6 @@ double MeanNees(bool match_depths, bool query_depths, double depth_sigma, int tr
     for (int k = 0; k < 7; ++k) *dof += eig.eigenvalues()[k] > 1e-9 * eig.eigenvalues().maxCoeff();
     sum += e.dot(v.information * e);
     ++used;
-
   }
   const double mean = sum / std::max(used, 1);
   std::cerr << "mean NEES " << mean << " over " << used << " scenes (" << *dof << " dof, " << px

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "loop/real_data.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/pipeline/pipeline.h"
 #include "test_util.h"
@@ -24,8 +25,7 @@ struct Castle {
   Trajectory gt;
 };
 
-// Strecha .camera: K (3x3), 3 zeros, R (3x3), camera centre (3), width height;
-// world_from_cam = [R | c].
+// The 30 views with their exact poses (tests/loop/real_data.h reads the Strecha cameras).
 Castle LoadCastleDataset() {
   Castle c;
   const auto root = test::DataDir() / "castle_p30_768";
@@ -33,38 +33,27 @@ Castle LoadCastleDataset() {
   c.dataset.root = root / "images";
   c.gt.has_rotation = true;
   for (int i = 0; i < 30; ++i) {
-    std::ifstream in(root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i));
-    double v[26];
-    for (double& x : v) in >> x;
-    EXPECT_TRUE(in.good()) << i;
-    if (i == 0) {
-      c.dataset.intrinsics.fx = v[0];
-      c.dataset.intrinsics.cx = v[2];
-      c.dataset.intrinsics.fy = v[4];
-      c.dataset.intrinsics.cy = v[5];
-      c.dataset.intrinsics.width = static_cast<int>(v[24]);
-      c.dataset.intrinsics.height = static_cast<int>(v[25]);
-    }
-    Eigen::Matrix3d r;
-    r << v[12], v[13], v[14], v[15], v[16], v[17], v[18], v[19], v[20];
-    DatasetFrame f;
-    f.index = i;
-    f.timestamp = i;
-    f.image_path = root / "images" / fmt::format("{:04d}.jpg", i);
-    c.dataset.frames.push_back(f);
+    const test::Frame f = test::ReadStrechaCamera(
+        root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i), /*transpose=*/false);
+    if (i == 0) c.dataset.intrinsics = f.intrinsics;
+    DatasetFrame frame;
+    frame.index = i;
+    frame.timestamp = i;
+    frame.image_path = root / "images" / fmt::format("{:04d}.jpg", i);
+    c.dataset.frames.push_back(frame);
     StampedPose p;
     p.frame = i;
     p.timestamp = i;
-    p.world_from_cam = Rigid3d(Eigen::Quaterniond(r), Eigen::Vector3d(v[21], v[22], v[23]));
+    p.world_from_cam = f.world_from_cam;
     c.gt.poses.push_back(p);
   }
   return c;
 }
 
 struct DriftSpec {
-  double yaw_deg = 0.0;      // heading bias per keyframe, about the camera's y axis (image down)
-  double scale_step = 1.0;   // each raw step length is multiplied by scale_step^i
-  uint64_t seed = 0;         // per-step noise: 0.1 deg rotation, 1 % translation (0 = none)
+  double yaw_deg = 0.0;     // heading bias per keyframe, about the camera's y axis (image down)
+  double scale_step = 1.0;  // each raw step length is multiplied by scale_step^i
+  uint64_t seed = 0;        // per-step noise: 0.1 deg rotation, 1 % translation (0 = none)
 };
 
 // Monocular drift of a raw vSLAM trajectory: every raw step is the GT step with the bias (and
@@ -84,8 +73,8 @@ Trajectory Drift(const Trajectory& gt, const DriftSpec& spec) {
     step_t *= std::pow(spec.scale_step, static_cast<double>(i));
     if (spec.seed != 0) {
       const Eigen::Vector3d w(n01(rng), n01(rng), n01(rng));
-      step_r = step_r * Eigen::Quaterniond(Eigen::AngleAxisd(
-                            0.1 * M_PI / 180.0 * w.norm(), w.normalized()));
+      step_r = step_r *
+               Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * M_PI / 180.0 * w.norm(), w.normalized()));
       step_t += 0.01 * step_t.norm() * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
     }
     pose = Rigid3d(pose.rotation * step_r, pose.translation + pose.rotation * step_t);

@@ -147,10 +147,10 @@ TEST(DriftData, OdometryNoiseOfRealEstimatesMatchesTheDefaults) {
     }
     rotation_medians.push_back(median(rot));
     translation_medians.push_back(median(trans));
-    std::cerr << fmt::format("{:12s} per-step rotation error median {:.3f} deg, translation error "
-                             "median {:.1f} %\n",
-                             c.name, rotation_medians.back() * 180.0 / M_PI,
-                             100.0 * translation_medians.back());
+    std::cerr << fmt::format(
+        "{:12s} per-step rotation error median {:.3f} deg, translation error "
+        "median {:.1f} %\n",
+        c.name, rotation_medians.back() * 180.0 / M_PI, 100.0 * translation_medians.back());
   }
   const double rot_max = *std::max_element(rotation_medians.begin(), rotation_medians.end());
   const double rot_min = *std::min_element(rotation_medians.begin(), rotation_medians.end());

@@ -3,7 +3,8 @@
 //  - a broken precondition (a caller bug, an invalid option) throws std::invalid_argument through
 //    SL_CHECK / SL_CHECK_MSG;
 //  - an expected failure (no loop, too few inliers) is a status in a result struct;
-//  - a malformed file throws sparseloop::FileError (core/error.h) naming file, line and expectation.
+//  - a malformed file throws sparseloop::FileError (core/error.h) naming file, line and
+//  expectation.
 // The library never aborts and never writes to stdout.
 //
 // The exception's what() is the readable message only ("max_dt must be >= 0 s, got -1"), which
@@ -45,10 +46,10 @@ namespace internal {
   } while (false)
 
 // SL_CHECK_MSG(x > 0, "x must be positive, got {}", x)
-#define SL_CHECK_MSG(condition, ...)                                               \
-  do {                                                                             \
-    if (!(condition)) {                                                            \
-      ::sparseloop::internal::ThrowCheckFailure(__FILE__, __LINE__, #condition,    \
-                                                ::fmt::format(__VA_ARGS__));       \
-    }                                                                              \
+#define SL_CHECK_MSG(condition, ...)                                            \
+  do {                                                                          \
+    if (!(condition)) {                                                         \
+      ::sparseloop::internal::ThrowCheckFailure(__FILE__, __LINE__, #condition, \
+                                                ::fmt::format(__VA_ARGS__));    \
+    }                                                                           \
   } while (false)

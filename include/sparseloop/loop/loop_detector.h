@@ -78,9 +78,9 @@ struct LoopResult {
   // Query without a pose: search-area keyframes dropped because they still share the scene with
   // the query (Options::overlap_gap), count; 0 otherwise.
   int overlap_excluded = 0;
-  int matches = 0;        // descriptor matches with match_id, count
-  int inliers = 0;        // geometric inliers with match_id, count
-  double score = 0.0;     // inliers / K (K = options.features.max_features), in [0, 1]
+  int matches = 0;     // descriptor matches with match_id, count
+  int inliers = 0;     // geometric inliers with match_id, count
+  double score = 0.0;  // inliers / K (K = options.features.max_features), in [0, 1]
   VerificationMethod method = VerificationMethod::kEssential;
   RelativePoseKind pose_kind = RelativePoseKind::kNone;
   // p_in_match = match_from_query * p_in_query; see pose_kind for what is meaningful.

@@ -23,7 +23,8 @@ namespace sparseloop {
 using PoseInformation7 = Eigen::Matrix<double, 7, 7>;
 
 struct PoseInformationOptions {
-  double min_sigma = 0.5 / 500.0;  // floor of the residual sigma, normalised units (0.5 px at f=500)
+  double min_sigma =
+      0.5 / 500.0;  // floor of the residual sigma, normalised units (0.5 px at f=500)
   // The inliers were selected by |r| <= inlier_threshold (normalised units; 0 = not truncated):
   // their mean squared residual then underestimates the noise (2D Gaussian noise of sigma 1.4 px
   // cut at 2 px keeps residuals with 0.42 x its second moment), so sigma is solved from the

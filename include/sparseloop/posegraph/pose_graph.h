@@ -147,9 +147,9 @@ struct LoopResidualCheck {
   int dof = 0;
   double threshold = 0.0;  // chi-square quantile for dof
   bool consistent = true;
-  double translation_error = 0.0;    // |upsilon| of r, match-camera units
-  double rotation_error_rad = 0.0;   // |omega| of r
-  double log_scale_error = 0.0;      // sigma of r
+  double translation_error = 0.0;   // |upsilon| of r, match-camera units
+  double rotation_error_rad = 0.0;  // |omega| of r
+  double log_scale_error = 0.0;     // sigma of r
 };
 
 struct PoseGraphSummary {

@@ -9,8 +9,8 @@
 namespace sparseloop::synthetic {
 
 struct ReportOptions {
-  std::filesystem::path script;       // report.py; empty: FindReportScript()
-  std::string python;                 // interpreter; empty: FindPython()
+  std::filesystem::path script;  // report.py; empty: FindReportScript()
+  std::string python;            // interpreter; empty: FindPython()
   // GT units: an accepted loop is drawn as false beyond this GT distance; 0 (default): the run's
   // own threshold, summary.json gt_loop_distance (10 without one), and the run's own verdicts.
   double false_loop_distance = 0.0;
