@@ -5,6 +5,7 @@
 #include <cstring>
 #include <numeric>
 #include <string>
+#include <unordered_map>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/hal/intrin.hpp>
@@ -364,13 +365,33 @@ void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions&
     const auto& mp = *input.mapped_pixels;
     const auto& md = *input.mapped_depths;
     record->depths.assign(keep.size(), 0.0f);
+    // Mapped pixels with a depth bucketed in 3 px cells: a keypoint looks at its cell and the 8
+    // around it (all pixels within 3 px), in input order, so ties resolve as a full scan would
+    // (the last pixel at the smallest distance wins). Linear in keypoints + mapped pixels, which
+    // matters for the query's whole extraction (asymmetric matching: 1,000 keypoints).
+    constexpr float kCell = 3.0f;
+    auto cell_of = [&](float v) { return static_cast<int64_t>(std::floor(v / kCell)); };
+    auto key = [](int64_t cx, int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+    std::unordered_map<int64_t, std::vector<uint32_t>> cells;
+    for (size_t m = 0; m < mp.size(); ++m)
+      if (md[m] > 0 && std::isfinite(mp[m].x) && std::isfinite(mp[m].y))
+        cells[key(cell_of(mp[m].x), cell_of(mp[m].y))].push_back(static_cast<uint32_t>(m));
+    std::vector<uint32_t> near;
     for (size_t j = 0; j < keep.size(); ++j) {
+      near.clear();
+      const int64_t cx = cell_of(pixels[j].x), cy = cell_of(pixels[j].y);
+      for (int64_t dy = -1; dy <= 1; ++dy)
+        for (int64_t dx = -1; dx <= 1; ++dx) {
+          const auto it = cells.find(key(cx + dx, cy + dy));
+          if (it != cells.end()) near.insert(near.end(), it->second.begin(), it->second.end());
+        }
+      std::sort(near.begin(), near.end());
       float best = 9.0f;  // squared pixel radius
-      for (size_t m = 0; m < mp.size(); ++m) {
+      for (uint32_t m : near) {
         const float dx = mp[m].x - pixels[j].x;
         const float dy = mp[m].y - pixels[j].y;
         const float d2 = dx * dx + dy * dy;
-        if (d2 <= best && md[m] > 0) {
+        if (d2 <= best) {
           best = d2;
           record->depths[j] = md[m];
         }

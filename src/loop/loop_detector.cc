@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
@@ -51,6 +52,12 @@ void LoopDetector::Options::Check() const {
   ann.Check();
   SL_CHECK_MSG(check_every >= 1, "check_every must be >= 1 keyframe, got {}", check_every);
   SL_CHECK_MSG(min_matches >= 5, "min_matches must be >= 5, got {}", min_matches);
+  SL_CHECK_MSG(repeatability_window >= 0 && repeatability_window <= 16 && repeatability_pool >= 5,
+               "repeatability_window must be in [0, 16] keyframes and repeatability_pool >= 5, "
+               "got {} and {}",
+               repeatability_window, repeatability_pool);
+  SL_CHECK_MSG(query_max_features >= 5, "query_max_features must be >= 5, got {}",
+               query_max_features);
   SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
                "min_path_ratio must be >= 0, got {}", min_path_ratio);
@@ -85,6 +92,29 @@ void LoopDetector::Options::LocalMapOptions::Check() const {
 }
 
 namespace {
+// The record a keyframe stores: the first k features of `order` (indices into its ranked
+// extraction), in vectors of exactly that size. With the identity order these are the K an
+// extraction of K keeps (the ranking is a total order).
+KeyframeRecord StoredSubset(const KeyframeRecord& full, const std::vector<int>& order, int k) {
+  KeyframeRecord rec;
+  rec.id = full.id;
+  rec.timestamp = full.timestamp;
+  rec.has_pose = full.has_pose;
+  rec.world_from_cam = full.world_from_cam;
+  rec.focal_px = full.focal_px;
+  const size_t n = std::min(order.size(), static_cast<size_t>(std::max(0, k)));
+  rec.descriptors.reserve(n);
+  rec.keypoints.reserve(n);
+  if (full.has_depths()) rec.depths.reserve(n);
+  for (size_t j = 0; j < n; ++j) {
+    const size_t i = static_cast<size_t>(order[j]);
+    rec.descriptors.push_back(full.descriptors[i]);
+    rec.keypoints.push_back(full.keypoints[i]);
+    if (full.has_depths()) rec.depths.push_back(full.depths[i]);
+  }
+  return rec;
+}
+
 int SmallKFloor(const LoopDetector::Options& o, int n) {
   const int k = o.features.max_features;
   return std::min(n,
@@ -153,11 +183,16 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
                  input.id);
   }
 
-  // 1. Informative features.
+  // 1. Informative features: the query's extraction (all it matches with), and the K stored.
   Timer stage;
-  KeyframeRecord rec = ExtractRecord(input);
-  rec.has_pose = input.world_from_cam.has_value();
-  if (rec.has_pose) rec.world_from_cam = *input.world_from_cam;
+  KeyframeRecord full = ExtractRecord(input);
+  full.has_pose = input.world_from_cam.has_value();
+  if (full.has_pose) full.world_from_cam = *input.world_from_cam;
+  KeyframeRecord rec = StoredSubset(full, StoredOrder(full), options_.features.max_features);
+  if (options_.repeatability_window > 0) {
+    recent_.push_back(full.descriptors);
+    if (recent_.size() > static_cast<size_t>(options_.repeatability_window)) recent_.pop_front();
+  }
   result.timings.extract_ms = stage.ElapsedMs();
 
   // 2. Store.
@@ -177,11 +212,11 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   path_length_.push_back(path);
   if (!relocalize) search_.Add(rec.id, position);  // no place on the trajectory without a pose
   records_.push_back(std::move(rec));
-  const KeyframeRecord& query = records_.back();
+  const KeyframeRecord& query = full;
 
   if (relocalize) {
     result.relocalization = true;
-    if (query.size() < 5) {
+    if (records_.back().size() < 5) {
       result.status = LoopStatus::kNoFeatures;
     } else {
       std::vector<PoolEntry> pool;
@@ -200,7 +235,7 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     result.timings.total_ms = total.ElapsedMs();
     return result;
   }
-  if (query.size() < 5) {
+  if (records_.back().size() < 5) {
     result.status = LoopStatus::kNoFeatures;
     result.timings.total_ms = total.ElapsedMs();
     return result;
@@ -333,8 +368,44 @@ KeyframeRecord LoopDetector::ExtractRecord(const KeyframeInput& input) const {
   if (!input.high_gradient_mask.empty()) fin.mask = &input.high_gradient_mask;
   if (!input.mapped_pixels.empty()) fin.mapped_pixels = &input.mapped_pixels;
   if (!input.mapped_depths.empty()) fin.mapped_depths = &input.mapped_depths;
-  ExtractInformativeFeatures(fin, options_.features, &rec);
+  FeatureOptions features = options_.features;
+  features.max_features = QueryFeatureCount();
+  ExtractInformativeFeatures(fin, features, &rec);
   return rec;
+}
+
+int LoopDetector::QueryFeatureCount() const {
+  const FeatureOptions& f = options_.features;
+  if (!options_.asymmetric_matching && options_.repeatability_window == 0) return f.max_features;
+  return std::clamp(options_.query_max_features, f.max_features, f.orb_candidates);
+}
+
+std::vector<int> LoopDetector::StoredOrder(const KeyframeRecord& full) const {
+  const int k = options_.features.max_features;
+  const int pool =
+      std::min(static_cast<int>(full.size()),
+               options_.repeatability_window > 0 ? std::max(k, options_.repeatability_pool) : k);
+  std::vector<int> order(static_cast<size_t>(std::max(0, pool)));
+  std::iota(order.begin(), order.end(), 0);
+  if (options_.repeatability_window == 0 || recent_.empty()) return order;
+  const std::vector<Descriptor> candidates(full.descriptors.begin(),
+                                           full.descriptors.begin() + pool);
+  std::vector<int> found(order.size(), 0);
+  for (const std::vector<Descriptor>& before : recent_)
+    for (const DescriptorMatch& m : MatchDescriptors(candidates, before, options_.match))
+      ++found[static_cast<size_t>(m.query)];
+  // Re-found most first; among equals, the extraction's own ranking (stable).
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return found[static_cast<size_t>(a)] > found[static_cast<size_t>(b)];
+  });
+  return order;
+}
+
+std::vector<DescriptorMatch> LoopDetector::MatchQuery(const KeyframeRecord& query,
+                                                      const KeyframeRecord& stored) const {
+  if (options_.asymmetric_matching && query.size() > stored.size())
+    return MatchStoredIntoQuery(query.descriptors, stored.descriptors, options_.match);
+  return MatchDescriptors(query.descriptors, stored.descriptors, options_.match);
 }
 
 LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
@@ -346,7 +417,7 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   Timer stage;
   KeyframeRecord rec = ExtractRecord(input);
   result.timings.extract_ms = stage.ElapsedMs();
-  if (rec.size() < 5) {
+  if (std::min<size_t>(rec.size(), options_.features.max_features) < 5) {
     result.status = LoopStatus::kNoFeatures;
   } else {
     std::vector<PoolEntry> pool;
@@ -384,14 +455,13 @@ struct CandidateRanking {
   size_t best_entry = 0;  // its position in the candidate list
 };
 
-template <typename RecordAt, typename TieKey>
-CandidateRanking RankCandidates(const KeyframeRecord& query, size_t num_candidates,
-                                RecordAt&& record_at, TieKey&& tie_key,
-                                const LoopDetector::Options& options) {
+template <typename RecordAt, typename TieKey, typename Match>
+CandidateRanking RankCandidates(size_t num_candidates, RecordAt&& record_at, TieKey&& tie_key,
+                                Match&& match, const LoopDetector::Options& options) {
   CandidateRanking out;
   const int min_matches = options.EffectiveMinMatches();
   for (size_t e = 0; e < num_candidates; ++e) {
-    auto m = MatchDescriptors(query.descriptors, record_at(e).descriptors, options.match);
+    auto m = match(record_at(e));
     const int n = static_cast<int>(m.size());
     if (n > out.best_count) {
       out.best_count = n;
@@ -422,8 +492,9 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   }
   Timer stage;
   const CandidateRanking ranking = RankCandidates(
-      query, pool.size(), [&](size_t e) -> const KeyframeRecord& { return *pool[e].record; },
-      [](size_t e) { return e; }, options_);
+      pool.size(), [&](size_t e) -> const KeyframeRecord& { return *pool[e].record; },
+      [](size_t e) { return e; }, [&](const KeyframeRecord& r) { return MatchQuery(query, r); },
+      options_);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms += stage.ElapsedMs();
   if (ranked.empty()) {
@@ -561,8 +632,7 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     }
     // Matched per keyframe (the ratio test within one keyframe; the same point seen from two map
     // keyframes would fail it across them), then the closest descriptor per query keypoint.
-    for (const DescriptorMatch& m :
-         MatchDescriptors(query.descriptors, kf.descriptors, options_.match)) {
+    for (const DescriptorMatch& m : MatchQuery(query, kf)) {
       if (map_index[m.train] < 0 || m.distance >= best_distance[m.query]) continue;
       best_distance[m.query] = m.distance;
       const DescriptorMatch dm{m.query, map_index[m.train], m.distance};
@@ -610,8 +680,7 @@ size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_en
   int misses = 0;
   int walked = 0;
   for (size_t k = exclude_end; k-- > 0 && walked < options_.overlap_max_walk; ++walked) {
-    const double matches = static_cast<double>(
-        MatchDescriptors(query.descriptors, records_[k].descriptors, options_.match).size());
+    const double matches = static_cast<double>(MatchQuery(query, records_[k]).size());
     if (walked == 0) threshold = std::max(floor, options_.overlap_relative * matches);
     if (matches >= threshold) {
       start = k;
@@ -696,9 +765,10 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   std::vector<size_t> record_index(candidates.size());
   for (size_t e = 0; e < candidates.size(); ++e) record_index[e] = index_of_.at(candidates[e]);
   const CandidateRanking ranking = RankCandidates(
-      query, candidates.size(),
+      candidates.size(),
       [&](size_t e) -> const KeyframeRecord& { return records_[record_index[e]]; },
-      [&](size_t e) { return record_index[e]; }, options_);
+      [&](size_t e) { return record_index[e]; },
+      [&](const KeyframeRecord& r) { return MatchQuery(query, r); }, options_);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms = stage.ElapsedMs();
   if (ranked.empty()) {

@@ -1,5 +1,6 @@
 #include "sparseloop/matching/descriptor_matching.h"
 
+#include <algorithm>
 #include <climits>
 #include <cmath>
 
@@ -47,6 +48,16 @@ std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& que
     if (options.mutual && best_q_for_t[best_t[i]] != i) continue;
     matches.push_back({i, best_t[i], best_d[i]});
   }
+  return matches;
+}
+
+std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descriptor>& query,
+                                                  const std::vector<Descriptor>& stored,
+                                                  const MatchOptions& options) {
+  std::vector<DescriptorMatch> matches = MatchDescriptors(stored, query, options);
+  for (DescriptorMatch& m : matches) std::swap(m.query, m.train);
+  std::sort(matches.begin(), matches.end(),
+            [](const DescriptorMatch& a, const DescriptorMatch& b) { return a.query < b.query; });
   return matches;
 }
 

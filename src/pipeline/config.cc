@@ -270,6 +270,14 @@ void AddDetectorKeys(KeyList& k) {
         "triangulation matching: mutual best only");
 
   const std::string d = "detector.";
+  k.Add(d + "asymmetric_matching", SL_FIELD(detector.asymmetric_matching), "",
+        "match the stored K features against the query's whole extraction (not K x K)");
+  k.Add(d + "query_max_features", SL_FIELD(detector.query_max_features), "features",
+        "asymmetric matching: features of the query matched, in [K, orb_candidates] (>= 5)");
+  k.Add(d + "repeatability_window", SL_FIELD(detector.repeatability_window), "keyframes",
+        "store first the features re-found in this many previous keyframes [0, 16] (0: off)");
+  k.Add(d + "repeatability_pool", SL_FIELD(detector.repeatability_pool), "features",
+        "repeatability ranking: best-ranked features that compete for the K (>= 5)");
   k.Add(d + "check_every", SL_FIELD(detector.check_every), "keyframes",
         "run the loop check every N keyframes (>= 1)");
   k.Add(d + "min_matches", SL_FIELD(detector.min_matches), "matches",

@@ -225,6 +225,60 @@ TEST(Features, MappedPixelsGiveDepths) {
   }
 }
 
+// The depth of a kept keypoint is the depth of the nearest mapped pixel with a depth within 3 px
+// (checked against a brute-force scan over every mapped pixel), at the query's whole extraction
+// (asymmetric matching) and with irregular, unknown (<= 0) and clustered depths.
+TEST(Features, MappedDepthIsTheNearestMappedPixelWithin3PxLikeAFullScan) {
+  const cv::Mat img = TexturedImage(7);
+  const CameraIntrinsics cam = SmallCamera();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-5.0f, 325.0f), v(-5.0f, 245.0f), z(-0.5f, 9.0f);
+  std::vector<cv::Point2f> pixels;
+  std::vector<float> depths;
+  for (int i = 0; i < 6000; ++i) {
+    pixels.emplace_back(u(rng), v(rng));
+    depths.push_back(z(rng));
+  }
+  FeatureInput in;
+  in.image = &img;
+  in.intrinsics = &cam;
+  in.mapped_pixels = &pixels;
+  in.mapped_depths = &depths;
+  FeatureOptions o;
+  o.max_features = 1000;
+  KeyframeRecord r;
+  ExtractInformativeFeatures(in, o, &r);
+  ASSERT_GT(r.size(), 100u);
+  ASSERT_EQ(r.depths.size(), r.size());
+  int with_depth = 0;
+  for (size_t i = 0; i < r.size(); ++i) {
+    const float px = static_cast<float>(r.keypoints[i].x * cam.fx + cam.cx);
+    const float py = static_cast<float>(r.keypoints[i].y * cam.fy + cam.cy);
+    float best = 1e9f, second = 1e9f;
+    float best_depth = 0.0f;
+    for (size_t m = 0; m < pixels.size(); ++m) {
+      if (depths[m] <= 0) continue;
+      const float d = std::hypot(pixels[m].x - px, pixels[m].y - py);
+      if (d < best) {
+        second = best;
+        best = d;
+        best_depth = depths[m];
+      } else if (d < second) {
+        second = d;
+      }
+    }
+    // Keypoints are stored normalised: their pixel is known to ~1e-4 px; skip the ambiguous.
+    if (std::abs(best - 3.0f) < 1e-3f || second - best < 1e-3f) continue;
+    if (best < 3.0f) {
+      EXPECT_EQ(r.depths[i], best_depth) << "keypoint " << i << " nearest " << best << " px";
+      ++with_depth;
+    } else {
+      EXPECT_EQ(r.depths[i], 0.0f) << "keypoint " << i << " nearest " << best << " px";
+    }
+  }
+  EXPECT_GT(with_depth, 50);
+}
+
 TEST(Features, OptionsCheck) {
   FeatureOptions o;
   EXPECT_NO_THROW(o.Check());

@@ -47,6 +47,21 @@ cv::Mat Shifted(const cv::Mat& a) {
   return out;
 }
 
+// `image` with `count` black / white rectangles (sides in [min_side, max_side) px) whose corners
+// lie in `area`: strong corners that are not part of the scene.
+cv::Mat WithBlobs(cv::Mat image, int count, cv::Rect area, int min_side, int max_side,
+                  uint64_t seed) {
+  cv::RNG rng(seed);
+  for (int i = 0; i < count; ++i) {
+    const cv::Point c(rng.uniform(area.x, area.x + area.width),
+                      rng.uniform(area.y, area.y + area.height));
+    cv::rectangle(image, c,
+                  c + cv::Point(rng.uniform(min_side, max_side), rng.uniform(min_side, max_side)),
+                  cv::Scalar(i % 2 ? 255 : 0), cv::FILLED);
+  }
+  return image;
+}
+
 KeyframeInput Input(int64_t id, const cv::Mat& image) {
   KeyframeInput in;
   in.id = id;
@@ -127,6 +142,87 @@ TEST(LoopDetector, RevisitDetectedUnrelatedNot) {
   EXPECT_EQ(detector.StoredBytes(), detector.record(10).Bytes() + detector.record(11).Bytes() +
                                         detector.record(12).Bytes());
   EXPECT_THROW(detector.record(99), std::invalid_argument);
+}
+
+// Asymmetric matching (issue #19): the stored record is the same K as without it (same bytes,
+// same descriptors), while the query matches with its whole extraction. A revisit whose query
+// view holds new, stronger corners (here: high-contrast blobs painted over a third of it) keeps
+// few of the stored K among its own strongest K: K x K misses it, K x all finds it.
+TEST(LoopDetector, AsymmetricMatchingStoresKAndFindsWhatKxKMisses) {
+  const cv::Mat a = Textured(1), b = Textured(2);
+  const cv::Mat revisit = WithBlobs(Shifted(a), 30, cv::Rect(0, 0, 90, 230), 6, 14, 9);
+  auto run = [&](bool asymmetric) {
+    LoopDetector::Options o = GlobalNoExclusion();
+    o.features.max_features = 15;
+    o.asymmetric_matching = asymmetric;
+    LoopDetector detector(o);
+    detector.Process(Input(0, a));
+    detector.Process(Input(1, b));
+    const LoopResult r = detector.Process(Input(2, revisit));
+    std::vector<KeyframeRecord> stored;
+    for (int64_t id : {0, 1, 2}) stored.push_back(detector.record(id));
+    return std::make_pair(r, stored);
+  };
+  const auto [sym, sym_records] = run(false);
+  const auto [asym, asym_records] = run(true);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(asym_records[i].size(), 15u);
+    EXPECT_EQ(asym_records[i].descriptors, sym_records[i].descriptors) << i;
+    EXPECT_EQ(asym_records[i].Bytes(), sym_records[i].Bytes()) << i;
+  }
+  EXPECT_FALSE(sym.detected()) << ToString(sym.status) << " " << sym.matches;
+  ASSERT_TRUE(asym.detected()) << ToString(asym.status) << " " << asym.matches;
+  EXPECT_EQ(asym.match_id, 0);
+  EXPECT_GT(asym.matches, sym.matches);
+  EXPECT_LE(asym.inliers, 15);  // every stored feature matches at most once
+  LoopDetector::Options bad;
+  bad.query_max_features = 4;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+// Repeatability ranking (issue #19): a keyframe stores first the features the keyframe before
+// re-finds. Keyframe 1 is keyframe 0 moved a little plus transient high-contrast blobs (strong
+// corners that no other keyframe sees): ranked by response its K are mostly blob corners, ranked
+// by repeatability they are structure keyframe 0 also saw, and keyframe 2 (the same place again,
+// without blobs) matches more of them.
+TEST(LoopDetector, RepeatabilityRankingStoresWhatTheKeyframeBeforeSaw) {
+  const cv::Mat a = Textured(4);
+  const cv::Mat transient = WithBlobs(Shifted(a), 40, cv::Rect(0, 0, 310, 230), 5, 9, 21);
+  auto stored_of_1 = [&](int window) {
+    LoopDetector::Options o = GlobalNoExclusion();
+    o.features.max_features = 15;
+    o.repeatability_window = window;
+    LoopDetector detector(o);
+    detector.Process(Input(0, a));
+    detector.Process(Input(1, transient));
+    return detector.record(1);
+  };
+  const KeyframeRecord response = stored_of_1(0), repeatable = stored_of_1(1);
+  ASSERT_EQ(response.size(), 15u);
+  ASSERT_EQ(repeatable.size(), 15u);
+  // How many of the stored 15 a later clean view of the place finds (asymmetric, 1,000).
+  LoopDetector::Options wide = GlobalNoExclusion();
+  wide.asymmetric_matching = true;
+  wide.features.max_features = 15;
+  const cv::Mat later = Shifted(Shifted(a));
+  auto refound = [&](const KeyframeRecord& stored) {
+    KeyframeInput in = Input(0, later);
+    LoopDetector::Options o = wide;
+    o.features.max_features = 1000;
+    o.features.orb_candidates = 1000;
+    LoopDetector extract(o);
+    extract.Process(in);
+    return MatchStoredIntoQuery(extract.record(0).descriptors, stored.descriptors, o.match).size();
+  };
+  const size_t by_response = refound(response), by_repeatability = refound(repeatable);
+  EXPECT_GE(by_repeatability, 8u);
+  EXPECT_GE(by_repeatability, by_response + 4) << by_response;
+  LoopDetector::Options bad;
+  bad.repeatability_window = -1;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+  bad.repeatability_window = 2;
+  bad.repeatability_pool = 3;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
 TEST(LoopDetector, CheckEveryNSkipsButStores) {

@@ -1,6 +1,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -66,6 +67,53 @@ TEST(Matching, MutualAndRatio) {
   EXPECT_TRUE(MatchDescriptors({}, {a}, o).empty());
   o.ratio = 0;
   EXPECT_THROW(o.Check(), std::invalid_argument);
+}
+
+// Asymmetric matching against a brute-force oracle: 15 stored descriptors, 600 query ones, some
+// stored descriptors planted in the query once (noisy), some twice (a repeated structure: the
+// ratio test on the stored side must reject those), the rest absent.
+TEST(Matching, StoredIntoQueryIsTheStoredSidesRatioTestAndMutual) {
+  auto rng = test::SeededRng(5);
+  std::vector<Descriptor> stored(15), query(600);
+  for (auto& d : stored) d = Random(rng);
+  for (auto& d : query) d = Random(rng);
+  for (int j = 0; j < 10; ++j) query[40 * j + 7] = FlipBits(stored[j], 12, rng);
+  for (int j = 0; j < 3; ++j) query[40 * j + 8] = query[40 * j + 7];  // twins
+  const MatchOptions o;                                               // ratio 0.9, mutual, 64 bits
+  const auto m = MatchStoredIntoQuery(query, stored, o);
+  // Oracle: stored j -> best query q (first lowest), second best d2; kept when d1 <= max,
+  // d1 < ratio d2 and q's best stored (first lowest) is j.
+  std::set<std::pair<int, int>> expected;
+  for (int j = 0; j < 15; ++j) {
+    int q = -1, d1 = 1000, d2 = 1000;
+    for (int i = 0; i < 600; ++i) {
+      const int d = HammingDistance(stored[j], query[i]);
+      if (d < d1) {
+        d2 = d1;
+        d1 = d;
+        q = i;
+      } else if (d < d2) {
+        d2 = d;
+      }
+    }
+    int back = -1, bd = 1000;
+    for (int k = 0; k < 15; ++k)
+      if (HammingDistance(query[q], stored[k]) < bd)
+        bd = HammingDistance(query[q], stored[k]), back = k;
+    if (d1 <= o.max_distance && d1 < o.ratio * d2 && back == j) expected.insert({q, j});
+  }
+  std::set<std::pair<int, int>> got;
+  for (size_t i = 0; i < m.size(); ++i) {
+    got.insert({m[i].query, m[i].train});
+    EXPECT_EQ(m[i].distance, HammingDistance(query[m[i].query], stored[m[i].train]));
+    if (i > 0) EXPECT_LT(m[i - 1].query, m[i].query);  // sorted by query index
+  }
+  EXPECT_EQ(got, expected);
+  // The 7 planted singles (3..9) are found; the twins' stored descriptors (0..2) are not.
+  EXPECT_EQ(got.size(), 7u);
+  for (const auto& [q, j] : got) EXPECT_EQ(q, 40 * j + 7);
+  // The query-side ratio test (MatchDescriptors(query, stored)) does not see the twins.
+  EXPECT_EQ(MatchDescriptors(query, stored, o).size(), 10u);
 }
 
 Sim3d RandomSim3(std::mt19937_64& rng, double scale) {

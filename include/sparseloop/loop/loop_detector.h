@@ -4,6 +4,7 @@
 // geometric verification, plus a consistency check against the raw pose prior.
 // Synchronous and deterministic: the same inputs and options give the same results.
 #include <cstdint>
+#include <deque>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -123,6 +124,27 @@ class LoopDetector {
     SearchAreaOptions search = DefaultSearch();  // search area on the raw trajectory
     MatchOptions match;                          // Hamming matching
     VerifyOptions verify;                        // geometric verification (seed inside)
+    // Asymmetric matching (issue #19): a stored record keeps its K features (memory per
+    // keyframe), but the keyframe being checked is matched with its whole ranked extraction, up
+    // to query_max_features (ORB extracts them anyway; only what is stored must be small). Every
+    // stored descriptor then finds its best match among the query's many (the ratio test on that
+    // side, MatchStoredIntoQuery), so a K = 15 record is found again by a query that saw the same
+    // place with other strong corners. false: the query matches with its K stored features
+    // (symmetric K x K, the paper). query_max_features in [K, features.orb_candidates] (larger
+    // values are clamped to orb_candidates; smaller than K means K).
+    bool asymmetric_matching = false;
+    int query_max_features = 1000;
+    // Keep the K that will be seen again (issue #19). The paper keeps features at mapped points,
+    // points the vSLAM saw in several keyframes. Measured here: a keyframe's features are ranked
+    // first by how many of the previous repeatability_window keyframes re-find them (a mutual,
+    // ratio-tested descriptor match against those keyframes' whole extraction, up to
+    // query_max_features), then by features.ranking. A feature re-found in the keyframes before
+    // lies on structure that persists under motion; a strong corner seen once (a specular
+    // highlight, a moving object, noise) does not. Only the first repeatability_pool features
+    // of features.ranking compete (>= K). Window 0: features.ranking alone (the paper's rule
+    // with kPopcount). Keyframes, >= 0; pool, features.
+    int repeatability_window = 0;
+    int repeatability_pool = 300;
     int check_every = 1;   // run the loop check every N keyframes (paper's N), keyframes >= 1
     int min_matches = 12;  // candidates with fewer descriptor matches are not verified, count
     int max_verify = 3;    // best-ranked candidates verified geometrically, count
@@ -284,8 +306,21 @@ class LoopDetector {
   void MatchAndVerifyPool(const KeyframeRecord& query, const std::vector<PoolEntry>& pool,
                           LoopResult* result) const;
   void ValidateImageInput(const KeyframeInput& input) const;
-  // Id, timestamp and the K informative features of `input` (no pose): Process and Relocalize.
+  // Id, timestamp and the informative features of `input` (no pose), ranked: the query's whole
+  // extraction with asymmetric matching (QueryFeatureCount), else K. Process and Relocalize.
   KeyframeRecord ExtractRecord(const KeyframeInput& input) const;
+  // Features extracted per keyframe: K, or query_max_features with asymmetric matching or
+  // repeatability ranking (clamped to [K, features.orb_candidates]).
+  int QueryFeatureCount() const;
+  // The order in which `full`'s features are stored (Options::repeatability_window: re-found
+  // in recent_ first), at most max(K, repeatability_pool) indices; identity without ranking.
+  std::vector<int> StoredOrder(const KeyframeRecord& full) const;
+  // Descriptors of the last repeatability_window keyframes' whole extractions, oldest first.
+  std::deque<std::vector<Descriptor>> recent_;
+  // Descriptor matches of a query record against a stored one (asymmetric: MatchStoredIntoQuery
+  // when the query holds more features, else MatchDescriptors).
+  std::vector<DescriptorMatch> MatchQuery(const KeyframeRecord& query,
+                                          const KeyframeRecord& stored) const;
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size

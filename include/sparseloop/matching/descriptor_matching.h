@@ -24,6 +24,16 @@ std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& que
                                               const std::vector<Descriptor>& train,
                                               const MatchOptions& options);
 
+// Asymmetric matching: a small stored set (a record's K descriptors) against a query's whole
+// extraction. Every stored descriptor finds its best among `query`; the ratio test runs on that
+// side (best < ratio x second best among the query's many, which is what tells a repeated corner
+// from a chance one), mutual as in MatchDescriptors. Indices as MatchDescriptors(query, stored)
+// (query = index into `query`, train = index into `stored`), sorted by query index.
+// Deterministic.
+std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descriptor>& query,
+                                                  const std::vector<Descriptor>& stored,
+                                                  const MatchOptions& options);
+
 // Score of a match set: sum over matches of (max_distance + 1 - distance) / (max_distance + 1).
 double MatchScore(const std::vector<DescriptorMatch>& matches, int max_distance);
 
