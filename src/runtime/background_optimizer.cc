@@ -62,9 +62,10 @@ void BackgroundOptimizer::Apply(const Message& message, bool* end, bool* new_loo
     if (!has_last_raw_) {
       graph_.AddVertex(kf->id, kf->raw, kf->raw);
     } else {
-      // Initial estimate: the corrected previous keyframe composed with the raw step.
+      // Initial estimate: the corrected previous keyframe composed with the raw step (the raw
+      // pose itself, exactly, while no solve has corrected anything).
       const Sim3d step = last_raw_.Inverse() * kf->raw;
-      graph_.AddVertex(kf->id, graph_.Pose(last_id_) * step, kf->raw);
+      graph_.AddVertex(kf->id, solved_ ? graph_.Pose(last_id_) * step : kf->raw, kf->raw);
       PoseGraphEdge edge;
       edge.from = last_id_;
       edge.to = kf->id;
@@ -89,14 +90,28 @@ void BackgroundOptimizer::Apply(const Message& message, bool* end, bool* new_loo
   }
 }
 
+void BackgroundOptimizer::WaitForIdle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  idle_cv_.wait(lock, [&] { return queue_.empty() && !working_; });
+}
+
 void BackgroundOptimizer::Run() {
   bool end = false;
   bool pending = false;  // loops added since the last completed solve
+  // A solve is due: pending loops, and solving while running or at the end of the stream.
+  auto due = [&] { return pending && (options_.solve_while_running || end); };
   while (true) {
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      // Sleep until there is work, unless a solve is pending (then just drain what is there).
-      if (!pending) not_empty_.wait(lock, [&] { return !queue_.empty(); });
+      // Sleep until there is work, unless a solve is due (then just drain what is there).
+      if (!due()) {
+        if (queue_.empty()) {
+          working_ = false;
+          idle_cv_.notify_all();
+        }
+        not_empty_.wait(lock, [&] { return !queue_.empty(); });
+        working_ = true;
+      }
       std::deque<Message> batch;
       batch.swap(queue_);
       // The flag is reset under the lock with the drain: a loop pushed later sets it again.
@@ -105,9 +120,10 @@ void BackgroundOptimizer::Run() {
       not_full_.notify_all();
       for (const Message& m : batch) Apply(m, &end, &pending);
     }
-    if (pending && graph_.num_vertices() >= 2) {
+    if (due() && graph_.num_vertices() >= 2) {
       const size_t num_loops = graph_.loops().size();
       PoseGraphSummary summary = graph_.Optimize(options_.solve, &interrupt_);
+      solved_ = true;
       ++num_solves_;
 #if defined(__GLIBC__)
       if (options_.release_memory_after_solve) malloc_trim(0);
@@ -127,12 +143,16 @@ void BackgroundOptimizer::Run() {
         correction.summary = std::move(summary);
         callback_(correction);
       }
-    } else {
-      pending = false;
+    } else if (due()) {
+      pending = false;  // fewer than two vertices: nothing to solve
     }
     if (end && !pending) {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (queue_.empty()) break;
+      if (queue_.empty()) {
+        working_ = false;
+        idle_cv_.notify_all();
+        break;
+      }
     }
   }
 }

@@ -14,34 +14,17 @@
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/posegraph/pose_graph.h"
+#include "sparseloop/runtime/loop_edge.h"
 
 namespace sparseloop {
 
-struct PipelineOptions {
+// The loop-edge options (direction_loop, loop_*) are inherited: one definition with LoopClosing,
+// and their configuration keys stay at the top level.
+struct PipelineOptions : LoopEdgeOptions {
   LoopDetector::Options detector;
   PoseGraphOptions optimizer;
-  OdometryWeighting odometry;           // information of the raw odometry edges
-  DirectionLoopOptions direction_loop;  // loops measured as rotation + unit direction (no depth)
+  OdometryWeighting odometry;                  // information of the raw odometry edges
   VertexType vertex_type = VertexType::kSim3;  // kSim3 for monocular raw poses
-  // Loops with a metric or Sim(3) relative pose (depths available): standard deviations.
-  double loop_translation_sigma_steps = 0.5;  // in units of the raw step length at the query
-  // rad; as DirectionLoopOptions::rotation_sigma_rad: a PnP / Sim(3) rotation is no less accurate
-  // than a two-view one (castle 29 -> 02 from the local map: 0.16 deg).
-  double loop_rotation_sigma_rad = 0.01;
-  double loop_scale_sigma = 0.05;  // log-scale
-  // Loops whose verification measured their own uncertainty (LoopResult::information: PnP and
-  // Sim(3) loops) use it instead of the fixed sigmas above (docs/POSEGRAPH.md, "Loop
-  // information"): covariance = inflation x the Gauss-Newton covariance of the inliers, plus the
-  // floors below (added as covariances, so a loop never claims less than them), weight 1.
-  bool loop_information_from_estimate = true;
-  // Variance multiplier (>= 1): the inliers' Gauss-Newton covariance ignores the noise of the
-  // local map the query was verified against (triangulated with raw relative poses) and the
-  // correlation between neighbouring features. Measured in docs/POSEGRAPH.md (normalised
-  // estimation error squared of castle and rendered loops against their ground truth).
-  double loop_covariance_inflation = 10.0;
-  double loop_min_translation_sigma_steps = 0.02;  // floor, in raw steps at the query
-  double loop_min_rotation_sigma_rad = 0.001;      // floor, rad
-  double loop_min_scale_sigma = 0.005;             // floor, log-scale
   // Read DIR/mapped/NNNNNN.txt ("u v depth" per line) when the dataset folder has it.
   bool use_mapped_pixels = true;
   // Raw poses are matched to frames by timestamp when both have timestamps (max |dt|, seconds),
@@ -112,11 +95,6 @@ LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Tra
                                  const Trajectory& raw_matched, double threshold,
                                  double max_dt = 0.02);
 
-// The loop edge for a detected loop, chosen by what the detector measured (docs/POSEGRAPH.md):
-// Sim(3) or metric SE(3) -> the full relative pose; rotation + unit direction -> the magnitude
-// from the raw trajectory's local step length.
-LoopConstraint MakeLoopConstraint(const LoopResult& loop, const Sim3d& raw_world_from_query,
-                                  const Sim3d& raw_world_from_match, double local_step_length,
-                                  const PipelineOptions& options);
+// MakeLoopConstraint (the loop edge for a detected loop): runtime/loop_edge.h.
 
 }  // namespace sparseloop

@@ -7,6 +7,8 @@
 // SOLVER_TERMINATE_SUCCESSFULLY: the partial solution is kept as a warm start and the graph is
 // re-solved with all loops. Every completed (non-interrupted) solve is delivered through the
 // callback, on the background thread. No sleep-polling: condition variables only.
+// With solve_while_running = false the graph is only built while the stream runs and solved once,
+// by Finish() (the offline `run`: the same graph and the same solve as PoseGraph::Optimize on it).
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -31,6 +33,9 @@ struct BackgroundOptimizerOptions {
   // the background thread's malloc arena keeps the high-water mark of the largest solve so far,
   // which grows with the graph (docs/ROBUSTNESS.md, "Soak"). Costs well under a millisecond.
   bool release_memory_after_solve = true;
+  // true: solve in the background whenever new loops arrived; false: no solve before Finish(),
+  // which runs one solve over every loop (and no solve is ever interrupted).
+  bool solve_while_running = true;
   void Check() const;
 };
 
@@ -61,6 +66,10 @@ class BackgroundOptimizer {
   // End of stream: processes everything queued, runs the final solve if loops arrived since the
   // last completed one, joins the thread. Idempotent.
   void Finish();
+  // Blocks until every message pushed so far is applied and no solve is running or due (the
+  // callback of the last solve has returned). With solve_while_running = false only the queue is
+  // drained. Returns at once after Finish(). Must not be called from the callback.
+  void WaitForIdle();
 
   // Counters (for tests and logs).
   uint64_t num_solves() const { return num_solves_.load(); }
@@ -86,10 +95,13 @@ class BackgroundOptimizer {
   bool has_last_raw_ = false;
   Sim3d last_raw_;
   int64_t last_id_ = 0;
+  bool solved_ = false;  // a solve (even an interrupted one) has moved the graph's estimates
 
   std::mutex mutex_;
   std::condition_variable not_empty_;
   std::condition_variable not_full_;
+  std::condition_variable idle_cv_;
+  bool working_ = true;  // the background thread is applying messages or solving
   std::deque<Message> queue_;
   bool closed_ = false;  // no more pushes accepted
   std::atomic<bool> interrupt_{false};

@@ -1,0 +1,161 @@
+#include "sparseloop/runtime/loop_closing.h"
+
+#include <algorithm>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+
+namespace sparseloop {
+
+void LoopClosing::Options::Check() const {
+  detector.Check();
+  loop_edge.Check();
+  optimizer.Check();
+}
+
+LoopClosing::LoopClosing(Options options, CorrectionCallback on_correction)
+    : options_((options.Check(), std::move(options))),
+      on_correction_(std::move(on_correction)),
+      detector_(options_.detector) {
+  if (options_.optimize) {
+    optimizer_ = std::make_unique<BackgroundOptimizer>(
+        options_.optimizer, [this](const PoseCorrection& c) { OnCorrection(c); });
+  }
+}
+
+LoopClosing::~LoopClosing() { Finish(); }
+
+LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
+  std::lock_guard<std::mutex> api_lock(api_mutex_);
+  SL_CHECK_MSG(!finished_, "AddKeyframe({}) after Finish(): the loop closer is closed",
+               keyframe.id);
+  SL_CHECK_MSG(!has_last_id_ || keyframe.id > last_id_,
+               "keyframe id {} must be greater than the previous keyframe's ({})", keyframe.id,
+               last_id_);
+  // Validates everything else before any state changes (throws with the detector unchanged).
+  LoopEvent event;
+  event.result = detector_.Process(keyframe);
+  has_last_id_ = true;
+  last_id_ = keyframe.id;
+  ++num_keyframes_;
+  if (!optimizer_ || !keyframe.world_from_cam) return event;
+
+  const Sim3d& raw = *keyframe.world_from_cam;
+  {
+    std::lock_guard<std::mutex> lock(poses_mutex_);
+    unsolved_ids_.push_back(keyframe.id);
+    unsolved_raw_.push_back(raw);
+  }
+  optimizer_->PushKeyframe(keyframe.id, raw);  // blocks while the queue is full
+  event.in_graph = true;
+  // Local step length at the query: from the previous graph keyframe (RunPipeline: the previous
+  // dataset frame; the same unless frames were skipped).
+  const double local_step = has_last_raw_ ? (raw.translation - last_raw_.translation).norm() : 0.0;
+  has_last_raw_ = true;
+  last_raw_ = raw;
+
+  const LoopResult& r = event.result;
+  if (!r.detected() || r.match_session != 0 || r.relocalization) return event;
+  const KeyframeRecord& match = detector_.record(r.match_id);
+  if (!match.has_pose) return event;  // no graph vertex (a global-search match without pose)
+  LoopConstraint edge;
+  try {
+    edge = MakeLoopConstraint(r, raw, match.world_from_cam, local_step, options_.loop_edge);
+  } catch (const std::invalid_argument& e) {
+    Logger().warn("loop closing: loop {} -> {} not sent to the optimizer: {}", r.query_id,
+                  r.match_id, e.what());
+    return event;
+  }
+  optimizer_->PushLoop(edge);
+  event.loop_in_graph = true;
+  event.loop_index = static_cast<int64_t>(num_loops_++);
+  return event;
+}
+
+void LoopClosing::Finish() {
+  std::lock_guard<std::mutex> api_lock(api_mutex_);
+  if (finished_) return;
+  if (optimizer_) optimizer_->Finish();
+  finished_ = true;
+}
+
+bool LoopClosing::finished() const { return finished_; }
+
+void LoopClosing::WaitForIdle() {
+  std::lock_guard<std::mutex> api_lock(api_mutex_);
+  if (optimizer_ && !finished_) optimizer_->WaitForIdle();
+}
+
+void LoopClosing::OnCorrection(const PoseCorrection& correction) {
+  auto copy = std::make_shared<const PoseCorrection>(correction);
+  {
+    std::lock_guard<std::mutex> lock(poses_mutex_);
+    if (!copy->ids.empty()) {
+      // Keyframes up to the solve's last one are solved now; keep the raw pose of that last one
+      // (the anchor of the extrapolation), drop the others.
+      const int64_t last = copy->ids.back();
+      const auto end = std::upper_bound(unsolved_ids_.begin(), unsolved_ids_.end(), last);
+      const size_t n = static_cast<size_t>(end - unsolved_ids_.begin());
+      if (n > 0 && unsolved_ids_[n - 1] == last) last_solved_raw_ = unsolved_raw_[n - 1];
+      unsolved_ids_.erase(unsolved_ids_.begin(), end);
+      unsolved_raw_.erase(unsolved_raw_.begin(), unsolved_raw_.begin() + static_cast<long>(n));
+    }
+    latest_ = copy;
+  }
+  if (on_correction_) on_correction_(*copy);
+}
+
+CorrectedKeyframes LoopClosing::Corrections() const {
+  std::lock_guard<std::mutex> lock(poses_mutex_);
+  CorrectedKeyframes out;
+  Sim3d correction;  // corrected(last solved) * raw(last solved)^-1; identity before any solve
+  if (latest_) {
+    out.revision = latest_->revision;
+    out.ids = latest_->ids;
+    out.world_from_keyframe = latest_->world_from_keyframe;
+    out.num_solved = out.ids.size();
+    if (!out.ids.empty())
+      correction = latest_->world_from_keyframe.back() * last_solved_raw_.Inverse();
+  }
+  out.ids.insert(out.ids.end(), unsolved_ids_.begin(), unsolved_ids_.end());
+  for (const Sim3d& raw : unsolved_raw_) out.world_from_keyframe.push_back(correction * raw);
+  return out;
+}
+
+std::optional<KeyframeCorrection> LoopClosing::CorrectedPose(int64_t id) const {
+  std::lock_guard<std::mutex> lock(poses_mutex_);
+  KeyframeCorrection out;
+  Sim3d correction;
+  if (latest_) {
+    out.revision = latest_->revision;
+    const auto& ids = latest_->ids;
+    const auto it = std::lower_bound(ids.begin(), ids.end(), id);
+    if (it != ids.end() && *it == id) {
+      out.world_from_keyframe = latest_->world_from_keyframe[static_cast<size_t>(it - ids.begin())];
+      out.solved = true;
+      return out;
+    }
+    if (!ids.empty()) correction = latest_->world_from_keyframe.back() * last_solved_raw_.Inverse();
+  }
+  const auto it = std::lower_bound(unsolved_ids_.begin(), unsolved_ids_.end(), id);
+  if (it == unsolved_ids_.end() || *it != id) return std::nullopt;
+  out.world_from_keyframe =
+      correction * unsolved_raw_[static_cast<size_t>(it - unsolved_ids_.begin())];
+  return out;
+}
+
+std::shared_ptr<const PoseCorrection> LoopClosing::LatestSolve() const {
+  std::lock_guard<std::mutex> lock(poses_mutex_);
+  return latest_;
+}
+
+size_t LoopClosing::num_keyframes() const { return num_keyframes_; }
+size_t LoopClosing::num_loops() const { return num_loops_; }
+
+const PoseGraph& LoopClosing::graph() const {
+  SL_CHECK_MSG(optimizer_ != nullptr, "graph(): LoopClosing runs without optimize");
+  SL_CHECK_MSG(finished_, "graph() is only available after Finish()");
+  return optimizer_->graph();
+}
+
+}  // namespace sparseloop

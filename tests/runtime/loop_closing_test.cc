@@ -1,0 +1,361 @@
+#include "sparseloop/runtime/loop_closing.h"
+
+#include <atomic>
+#include <cmath>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/cli_runner.h"
+#include "sparseloop/io/dataset.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "sparseloop/pipeline/pipeline.h"
+
+namespace sparseloop {
+namespace {
+
+// The rendered loop sequence of the CLI tests (aerial circuit, 60 frames, 2 laps) with the raw
+// poses matched to its frames, as `sparseloop run --poses poses_raw.txt` reads them.
+struct Sequence {
+  Dataset dataset;
+  Trajectory raw;
+};
+
+Sequence LoadSequence() {
+  const auto dir = test::RenderedLoopSequence();
+  EXPECT_FALSE(dir.empty()) << "sparseloop render failed";
+  Sequence s;
+  s.dataset = OpenDataset("kitti:" + dir.string());
+  const PipelineOptions defaults;
+  s.raw = MatchRawPosesToFrames(s.dataset, ReadTrajectory(dir / "poses_raw.txt"),
+                                defaults.raw_association_max_dt, dir / "poses_raw.txt");
+  return s;
+}
+
+// Frame i as RunPipeline builds its keyframe (image, raw pose, mapped pixels with depths).
+KeyframeInput FrameInput(const Sequence& s, size_t i) {
+  const DatasetFrame& frame = s.dataset.frames[i];
+  KeyframeInput in;
+  in.id = frame.index;
+  in.timestamp = frame.timestamp;
+  in.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+  in.intrinsics = s.dataset.intrinsics;
+  in.world_from_cam = Sim3d(s.raw.poses[i].world_from_cam);
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(frame.index));
+  const auto mapped = s.dataset.root / "mapped" / name;
+  if (std::filesystem::exists(mapped)) {
+    MappedPixels m = ReadMappedPixels(mapped);
+    in.mapped_pixels = std::move(m.pixels);
+    in.mapped_depths = std::move(m.depths);
+  }
+  return in;
+}
+
+// The LoopClosing options equal to `run`'s PipelineOptions.
+LoopClosing::Options OptionsOf(const PipelineOptions& p, bool solve_while_running) {
+  LoopClosing::Options o;
+  o.detector = p.detector;
+  o.loop_edge = p;
+  o.optimizer.solve = p.optimizer;
+  o.optimizer.odometry = p.odometry;
+  o.optimizer.vertex_type = p.vertex_type;
+  o.optimizer.solve_while_running = solve_while_running;
+  return o;
+}
+
+std::vector<std::pair<int64_t, int64_t>> LoopIds(const std::vector<LoopResult>& loops) {
+  std::vector<std::pair<int64_t, int64_t>> ids;
+  for (const LoopResult& l : loops) ids.emplace_back(l.query_id, l.match_id);
+  return ids;
+}
+
+// Largest position difference between LoopClosing's corrected keyframes and RunPipeline's
+// corrected trajectory (every frame is a keyframe), and the largest rotation difference (rad).
+struct Difference {
+  double position = 0.0;
+  double rotation_rad = 0.0;
+};
+Difference Compare(const CorrectedKeyframes& online, const PipelineResult& offline) {
+  EXPECT_EQ(online.ids.size(), offline.corrected.poses.size());
+  Difference d;
+  for (size_t i = 0; i < online.ids.size() && i < offline.corrected.poses.size(); ++i) {
+    EXPECT_EQ(online.ids[i], offline.corrected.poses[i].frame);
+    const Rigid3d& ref = offline.corrected.poses[i].world_from_cam;
+    const Sim3d& got = online.world_from_keyframe[i];
+    d.position = std::max(d.position, (got.translation - ref.translation).norm());
+    d.rotation_rad = std::max(d.rotation_rad, got.rotation.angularDistance(ref.rotation));
+  }
+  return d;
+}
+
+// A keyframe the detector stores without features (uniform image: status kNoFeatures, never a
+// loop): cheap input for the API tests that need no detection.
+KeyframeInput BlankKeyframe(int64_t id, std::optional<Sim3d> pose) {
+  KeyframeInput in;
+  in.id = id;
+  in.timestamp = 1.0 + 0.1 * static_cast<double>(id);
+  in.image = cv::Mat(120, 160, CV_8UC1, cv::Scalar(128));
+  in.intrinsics.fx = in.intrinsics.fy = 150.0;
+  in.intrinsics.cx = 79.5;
+  in.intrinsics.cy = 59.5;
+  in.intrinsics.width = 160;
+  in.intrinsics.height = 120;
+  in.world_from_cam = pose;
+  return in;
+}
+
+Sim3d PoseAt(double x) { return Sim3d(1.0, Eigen::Quaterniond::Identity(), {x, 0.0, 0.0}); }
+
+// (a) The online API over the frames of `run` finds the same loops and, solving once at Finish
+// (solve_while_running = false), the same corrected trajectory: the same detector on the same
+// input, the same graph (vertices start at the raw poses, same odometry and loop edges, same
+// order) and the same deterministic solve. The tolerance 1e-9 covers only the round-off of
+// RunPipeline returning its keyframes through CorrectFramePoses (correction * raw^-1 * raw).
+TEST(LoopClosing, SameLoopsAndTrajectoryAsRunPipeline) {
+  const Sequence s = LoadSequence();
+  ASSERT_EQ(s.dataset.frames.size(), 60u);
+  const PipelineOptions popt;
+  const PipelineResult offline = RunPipeline(s.dataset, s.raw, popt);
+  ASSERT_GE(offline.loops.size(), 10u);  // the sequence closes loops on its second lap
+
+  LoopClosing closing(OptionsOf(popt, /*solve_while_running=*/false));
+  std::vector<LoopResult> loops;
+  for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
+    const LoopEvent e = closing.AddKeyframe(FrameInput(s, i));
+    EXPECT_EQ(e.result.status, offline.frame_results[i].status) << "frame " << i;
+    EXPECT_TRUE(e.in_graph);
+    EXPECT_EQ(e.loop_in_graph, e.result.detected());
+    if (e.result.detected()) {
+      EXPECT_EQ(e.loop_index, static_cast<int64_t>(loops.size()));
+      loops.push_back(e.result);
+    }
+  }
+  EXPECT_EQ(LoopIds(loops), LoopIds(offline.loops));
+  // Nothing is solved before Finish: the poll gives the raw poses, exactly.
+  const CorrectedKeyframes before = closing.Corrections();
+  EXPECT_EQ(before.revision, 0u);
+  EXPECT_EQ(before.num_solved, 0u);
+  ASSERT_EQ(before.ids.size(), 60u);
+  EXPECT_EQ(before.world_from_keyframe[40].translation, s.raw.poses[40].world_from_cam.translation);
+
+  closing.Finish();
+  const auto solve = closing.LatestSolve();
+  ASSERT_NE(solve, nullptr);
+  EXPECT_EQ(solve->revision, 1u);
+  EXPECT_EQ(solve->summary.rejected_loops, offline.optimizer.rejected_loops);
+  EXPECT_EQ(solve->summary.final_cost, offline.optimizer.final_cost);
+  const CorrectedKeyframes after = closing.Corrections();
+  EXPECT_EQ(after.num_solved, 60u);
+  const Difference d = Compare(after, offline);
+  EXPECT_LT(d.position, 1e-9);
+  EXPECT_LT(d.rotation_rad, 1e-9);
+  // And the correction is a real one: far from the raw trajectory.
+  double moved = 0.0;
+  for (size_t i = 0; i < 60; ++i)
+    moved = std::max(moved, (after.world_from_keyframe[i].translation -
+                             s.raw.poses[i].world_from_cam.translation)
+                                .norm());
+  EXPECT_GT(moved, 1.0);
+}
+
+// (a) + (b): solving in the background while keyframes arrive, polled from another thread. The
+// loops are the same; the final trajectory equals `run`'s up to the solver's convergence: the
+// final solve starts from the previous solve's estimate instead of the raw poses, and Ceres stops
+// at a relative cost decrease of PoseGraphOptions' tolerances, so the two minima agree to a
+// small fraction of the correction (measured: 5e-4 m and 8e-7 rad after 32 solves; asserted
+// < 0.05 m and < 1e-3 rad, against corrections of several metres).
+TEST(LoopClosing, BackgroundSolvesPolledFromAnotherThread) {
+  const Sequence s = LoadSequence();
+  const PipelineOptions popt;
+  std::atomic<uint64_t> callbacks{0};
+  std::atomic<bool> callback_order_ok{true};
+  LoopClosing* self = nullptr;
+  LoopClosing closing(OptionsOf(popt, /*solve_while_running=*/true), [&](const PoseCorrection& c) {
+    // Background thread: revisions come in order, and the poll already shows this one.
+    if (c.revision != callbacks.load() + 1) callback_order_ok = false;
+    if (self->LatestSolve()->revision != c.revision) callback_order_ok = false;
+    callbacks = c.revision;
+  });
+  self = &closing;
+
+  std::atomic<bool> done{false};
+  std::atomic<int> polls{0};
+  std::atomic<bool> poll_ok{true};
+  std::thread poller([&] {
+    uint64_t last_revision = 0;
+    while (!done.load()) {
+      const CorrectedKeyframes c = closing.Corrections();
+      bool ok = c.revision >= last_revision && c.ids.size() == c.world_from_keyframe.size() &&
+                c.num_solved <= c.ids.size();
+      for (size_t i = 1; i < c.ids.size(); ++i) ok = ok && c.ids[i] > c.ids[i - 1];
+      for (const Sim3d& p : c.world_from_keyframe) ok = ok && p.translation.allFinite();
+      if (!c.ids.empty()) {
+        const auto one = closing.CorrectedPose(c.ids.back());
+        ok = ok && one.has_value() && one->revision >= c.revision;
+      }
+      last_revision = c.revision;
+      if (!ok) poll_ok = false;
+      ++polls;
+      std::this_thread::yield();
+    }
+  });
+  std::vector<LoopResult> loops;
+  for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
+    const LoopEvent e = closing.AddKeyframe(FrameInput(s, i));
+    if (e.result.detected()) loops.push_back(e.result);
+  }
+  closing.Finish();
+  done = true;
+  poller.join();
+  EXPECT_TRUE(poll_ok);
+  EXPECT_GT(polls.load(), 0);
+  EXPECT_TRUE(callback_order_ok);
+  EXPECT_GE(callbacks.load(), 1u);
+  ASSERT_NE(closing.LatestSolve(), nullptr);
+  EXPECT_EQ(closing.LatestSolve()->revision, callbacks.load());
+
+  const PipelineResult offline = RunPipeline(s.dataset, s.raw, popt);
+  EXPECT_EQ(LoopIds(loops), LoopIds(offline.loops));
+  EXPECT_EQ(closing.LatestSolve()->summary.rejected_loops, offline.optimizer.rejected_loops);
+  const Difference d = Compare(closing.Corrections(), offline);
+  EXPECT_LT(d.position, 0.05) << "rotation " << d.rotation_rad;
+  EXPECT_LT(d.rotation_rad, 1e-3);
+}
+
+// After a solve, a keyframe added later is the last correction composed onto its raw pose.
+TEST(LoopClosing, KeyframesAfterTheLastSolveFollowItsCorrection) {
+  const Sequence s = LoadSequence();
+  LoopClosing closing(OptionsOf(PipelineOptions{}, /*solve_while_running=*/true));
+  size_t i = 0;
+  for (; i < s.dataset.frames.size(); ++i) {
+    if (closing.AddKeyframe(FrameInput(s, i)).loop_in_graph) break;
+  }
+  ASSERT_LT(i, s.dataset.frames.size()) << "no loop";
+  closing.WaitForIdle();
+  const auto solve = closing.LatestSolve();
+  ASSERT_NE(solve, nullptr);
+  const int64_t last = solve->ids.back();
+  EXPECT_EQ(last, s.dataset.frames[i].index);
+  const Sim3d correction =
+      solve->world_from_keyframe.back() * Sim3d(s.raw.poses[i].world_from_cam).Inverse();
+
+  const Sim3d raw_new = Sim3d(s.raw.poses[i].world_from_cam) * PoseAt(0.3);
+  const LoopEvent e = closing.AddKeyframe(BlankKeyframe(1000, raw_new));
+  EXPECT_EQ(e.result.status, LoopStatus::kNoFeatures);
+  const auto p = closing.CorrectedPose(1000);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_FALSE(p->solved);
+  EXPECT_EQ(p->revision, solve->revision);
+  EXPECT_LT((p->world_from_keyframe.translation - (correction * raw_new).translation).norm(), 1e-9);
+  const auto solved = closing.CorrectedPose(last);
+  ASSERT_TRUE(solved.has_value());
+  EXPECT_TRUE(solved->solved);
+  const CorrectedKeyframes all = closing.Corrections();
+  EXPECT_EQ(all.num_solved + 1, all.ids.size());
+  EXPECT_EQ(all.ids.back(), 1000);
+  EXPECT_FALSE(closing.CorrectedPose(999).has_value());  // never added
+}
+
+// (c) Finish is idempotent; AddKeyframe after it is a clear error; the results stay readable.
+TEST(LoopClosing, FinishIsIdempotentAndClosesTheStream) {
+  LoopClosing closing(LoopClosing::Options{});
+  closing.AddKeyframe(BlankKeyframe(0, PoseAt(0)));
+  closing.AddKeyframe(BlankKeyframe(1, PoseAt(1)));
+  EXPECT_FALSE(closing.finished());
+  closing.Finish();
+  EXPECT_TRUE(closing.finished());
+  closing.Finish();
+  closing.WaitForIdle();  // returns at once
+  try {
+    closing.AddKeyframe(BlankKeyframe(2, PoseAt(2)));
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("after Finish()"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(closing.num_keyframes(), 2u);
+  EXPECT_EQ(closing.graph().num_vertices(), 2u);
+  EXPECT_EQ(closing.LatestSolve(), nullptr);  // no loop: nothing was solved
+  const CorrectedKeyframes c = closing.Corrections();
+  ASSERT_EQ(c.ids.size(), 2u);
+  EXPECT_EQ(c.world_from_keyframe[1].translation, PoseAt(1).translation);  // raw: no correction
+}
+
+// (d) Bad input throws std::invalid_argument and changes nothing; the next good keyframe works.
+TEST(LoopClosing, BadKeyframeThrowsAndLeavesStateIntact) {
+  LoopClosing closing(LoopClosing::Options{});
+  closing.AddKeyframe(BlankKeyframe(5, PoseAt(0)));
+  closing.AddKeyframe(BlankKeyframe(6, PoseAt(1)));
+  auto expect_rejected = [&](const KeyframeInput& bad, const std::string& what) {
+    try {
+      closing.AddKeyframe(bad);
+      ADD_FAILURE() << "no throw for " << what;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(closing.num_keyframes(), 2u);
+    EXPECT_EQ(closing.detector().num_keyframes(), 2u);
+    EXPECT_EQ(closing.Corrections().ids, (std::vector<int64_t>{5, 6}));
+  };
+  expect_rejected(BlankKeyframe(6, PoseAt(2)), "must be greater");  // repeated id
+  expect_rejected(BlankKeyframe(4, PoseAt(2)), "must be greater");  // decreasing id
+  KeyframeInput late_time = BlankKeyframe(7, PoseAt(2));
+  late_time.timestamp = 0.5;
+  expect_rejected(late_time, "must increase");
+  Sim3d nan_pose = PoseAt(2);
+  nan_pose.translation.x() = std::nan("");
+  expect_rejected(BlankKeyframe(7, nan_pose), "not finite");
+  KeyframeInput no_image = BlankKeyframe(7, PoseAt(2));
+  no_image.image = cv::Mat();
+  expect_rejected(no_image, "image");
+
+  const LoopEvent ok = closing.AddKeyframe(BlankKeyframe(7, PoseAt(2)));
+  EXPECT_TRUE(ok.in_graph);
+  closing.Finish();
+  EXPECT_EQ(closing.graph().VertexIds(), (std::vector<int64_t>{5, 6, 7}));
+  EXPECT_EQ(closing.graph().edges().size(), 2u);  // the odometry chain, nothing from bad input
+}
+
+// A keyframe without pose goes to the detector only: no graph vertex, no corrected pose, and the
+// odometry chain joins the keyframes around it.
+TEST(LoopClosing, KeyframeWithoutPoseIsDetectedButNotInTheGraph) {
+  LoopClosing::Options options;
+  options.optimizer.queue_capacity = 1;  // backpressure on every push, still correct
+  LoopClosing closing(options);
+  closing.AddKeyframe(BlankKeyframe(0, PoseAt(0)));
+  const LoopEvent lost = closing.AddKeyframe(BlankKeyframe(1, std::nullopt));
+  EXPECT_FALSE(lost.in_graph);
+  closing.AddKeyframe(BlankKeyframe(2, PoseAt(2)));
+  EXPECT_FALSE(closing.CorrectedPose(1).has_value());
+  EXPECT_TRUE(closing.CorrectedPose(2).has_value());
+  EXPECT_EQ(closing.detector().num_keyframes(), 3u);
+  closing.Finish();
+  EXPECT_EQ(closing.graph().VertexIds(), (std::vector<int64_t>{0, 2}));
+  ASSERT_EQ(closing.graph().edges().size(), 1u);
+  EXPECT_EQ(closing.graph().edges()[0].from, 0);
+  EXPECT_EQ(closing.graph().edges()[0].to, 2);
+}
+
+TEST(LoopClosing, DetectionOnlyWithoutOptimize) {
+  LoopClosing::Options options;
+  options.optimize = false;
+  LoopClosing closing(options);
+  const LoopEvent e = closing.AddKeyframe(BlankKeyframe(0, PoseAt(0)));
+  EXPECT_FALSE(e.in_graph);
+  EXPECT_TRUE(closing.Corrections().ids.empty());
+  closing.Finish();
+  EXPECT_THROW(closing.graph(), std::invalid_argument);
+}
+
+TEST(LoopClosing, InvalidOptionsThrow) {
+  LoopClosing::Options options;
+  options.optimizer.queue_capacity = 0;
+  EXPECT_THROW(LoopClosing{options}, std::invalid_argument);
+  options = {};
+  options.loop_edge.loop_covariance_inflation = 0.5;
+  EXPECT_THROW(LoopClosing{options}, std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace sparseloop
