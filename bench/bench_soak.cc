@@ -1,6 +1,7 @@
 // Soak benchmark (not a unit test, no Google Benchmark main): pushes N keyframes of cheap
-// synthetic images through LoopDetector and a BackgroundOptimizer fed with the detected loops,
-// and records memory and time as the map grows. docs/ROBUSTNESS.md, "Soak".
+// synthetic images through LoopClosing (the online API: LoopDetector, loop edges as `run` makes
+// them, BackgroundOptimizer), and records memory and time as the map grows. docs/ROBUSTNESS.md,
+// "Soak". --no-optimizer: LoopClosing::Options::optimize = false (detection only).
 //
 //   bench_soak [--keyframes 100000] [--k 300] [--out soak.csv] [--period 400] [--check-every 10]
 //              [--window 1000] [--no-optimizer] [--rejection pcm|none] [--keep-heap]
@@ -16,7 +17,7 @@
 //
 // Every `window` keyframes one CSV row: keyframes, peak RSS (VmHWM) and current RSS (VmRSS) in KiB
 // from /proc/self/status, mean and p99 ms per keyframe (Process + pushes) in the window, loops
-// so far, completed optimizer solves so far, detector record bytes (sum of Bytes()). At the end
+// so far, optimizer solves so far, detector record bytes (sum of Bytes()). At the end
 // the RSS slope over the second half (bytes per keyframe, least squares) and a JSON summary go
 // to stdout.
 #include <algorithm>
@@ -33,9 +34,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "sparseloop/loop/loop_detector.h"
-#include "sparseloop/pipeline/pipeline.h"
-#include "sparseloop/runtime/background_optimizer.h"
+#include "sparseloop/runtime/loop_closing.h"
 
 namespace {
 
@@ -151,22 +150,17 @@ int main(int argc, char** argv) {
   cam.width = width;
   cam.height = height;
 
-  sparseloop::LoopDetector::Options dopt;
-  dopt.features.max_features = k;
-  dopt.check_every = check_every;
-  sparseloop::LoopDetector detector(dopt);
-
-  sparseloop::PipelineOptions popt;  // loop constraint weighting as `sparseloop run` does it
-  sparseloop::BackgroundOptimizerOptions bopt;
-  bopt.solve.rejection =
+  // Loop edges weighted as `sparseloop run` does it (LoopEdgeOptions defaults).
+  sparseloop::LoopClosing::Options lopt;
+  lopt.detector.features.max_features = k;
+  lopt.detector.check_every = check_every;
+  lopt.optimize = use_optimizer;
+  lopt.optimizer.solve.rejection =
       rejection == "pcm" ? sparseloop::OutlierRejection::kPcm : sparseloop::OutlierRejection::kNone;
-  bopt.solve.max_iterations = 20;
-  bopt.solve.reduce_chains = !full_graph;
-  bopt.release_memory_after_solve = !keep_heap;
-  std::unique_ptr<sparseloop::BackgroundOptimizer> optimizer;
-  if (use_optimizer)
-    optimizer = std::make_unique<sparseloop::BackgroundOptimizer>(
-        bopt, [](const sparseloop::PoseCorrection&) {});
+  lopt.optimizer.solve.max_iterations = 20;
+  lopt.optimizer.solve.reduce_chains = !full_graph;
+  lopt.optimizer.release_memory_after_solve = !keep_heap;
+  sparseloop::LoopClosing closing(lopt);
 
   // Nadir camera: x right = world x, y down = world -y, z forward = world -z.
   Eigen::Matrix3d r_nadir;
@@ -182,7 +176,6 @@ int main(int argc, char** argv) {
         1.0, q_nadir,
         Eigen::Vector3d(centre_m + r * std::cos(phase), centre_m + r * std::sin(phase), altitude));
   };
-  const double step_m = 2.0 * M_PI * radius_m / period;
 
   std::ofstream csv(out_path);
   csv << "keyframes,peak_rss_kib,rss_kib,mean_ms,p99_ms,loops,solves,record_bytes\n";
@@ -212,15 +205,9 @@ int main(int argc, char** argv) {
     in.image = image;
     in.intrinsics = cam;
     in.world_from_cam = pose;
-    const sparseloop::LoopResult r = detector.Process(in);
-    record_bytes += detector.record(i).Bytes();
-    if (optimizer) optimizer->PushKeyframe(i, pose);
-    if (r.detected()) {
-      ++loops;
-      if (optimizer)
-        optimizer->PushLoop(
-            sparseloop::MakeLoopConstraint(r, pose, pose_of(r.match_id), step_m, popt));
-    }
+    const sparseloop::LoopEvent e = closing.AddKeyframe(in);
+    record_bytes += closing.detector().record(i).Bytes();
+    if (e.result.detected()) ++loops;
     window_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
             .count());
@@ -229,7 +216,7 @@ int main(int argc, char** argv) {
       double mean = 0.0;
       for (double v : window_ms) mean += v;
       mean /= static_cast<double>(window_ms.size());
-      const uint64_t solves = optimizer ? optimizer->num_solves() : 0;
+      const uint64_t solves = closing.num_solves();
       csv << (i + 1) << ',' << hwm << ',' << rss << ',' << mean << ','
           << Percentile(window_ms, 0.99) << ',' << loops << ',' << solves << ',' << record_bytes
           << '\n'
@@ -242,7 +229,7 @@ int main(int argc, char** argv) {
   }
   const double loop_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (optimizer) optimizer->Finish();
+  closing.Finish();
   const double total_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -263,9 +250,9 @@ int main(int argc, char** argv) {
       "\"rss_start_kib\": %ld, \"rss_end_kib\": %ld, \"peak_rss_kib\": %ld, "
       "\"loop_seconds\": %.1f, \"total_seconds\": %.1f, \"ms_per_keyframe\": %.3f, "
       "\"csv\": \"%s\"}\n",
-      keyframes, k, check_every, period, optimizer ? "true" : "false", rejection.c_str(),
+      keyframes, k, check_every, period, use_optimizer ? "true" : "false", rejection.c_str(),
       keep_heap ? "false" : "true", full_graph ? "false" : "true", loops,
-      static_cast<unsigned long>(optimizer ? optimizer->num_solves() : 0), slope,
+      static_cast<unsigned long>(closing.num_solves()), slope,
       static_cast<double>(record_bytes) / static_cast<double>(keyframes), rss_start_kib, final_rss,
       peak, loop_seconds, total_seconds, 1000.0 * loop_seconds / keyframes, out_path.c_str());
   return 0;

@@ -151,6 +151,7 @@ std::shared_ptr<const PoseCorrection> LoopClosing::LatestSolve() const {
 
 size_t LoopClosing::num_keyframes() const { return num_keyframes_; }
 size_t LoopClosing::num_loops() const { return num_loops_; }
+uint64_t LoopClosing::num_solves() const { return optimizer_ ? optimizer_->num_solves() : 0; }
 
 const PoseGraph& LoopClosing::graph() const {
   SL_CHECK_MSG(optimizer_ != nullptr, "graph(): LoopClosing runs without optimize");

@@ -2,6 +2,8 @@
 
 #include <atomic>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -11,6 +13,7 @@
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/pipeline.h"
+#include "test_util.h"
 
 namespace sparseloop {
 namespace {
@@ -355,6 +358,30 @@ TEST(LoopClosing, InvalidOptionsThrow) {
   options = {};
   options.loop_edge.loop_covariance_inflation = 0.5;
   EXPECT_THROW(LoopClosing{options}, std::invalid_argument);
+}
+
+// The README's "Online use" code is a literal excerpt of examples/online_loop_closing.cc (which
+// the build compiles): the text between its two "// [online-use]" markers.
+TEST(LoopClosing, ReadmeShowsTheCompiledExample) {
+  auto slurp = [](const std::filesystem::path& path) {
+    std::ifstream in(path);
+    EXPECT_TRUE(in.good()) << path;
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  const std::string example = slurp(test::SourceDir() / "examples" / "online_loop_closing.cc");
+  const std::string marker = "// [online-use]\n";
+  const size_t begin = example.find(marker);
+  ASSERT_NE(begin, std::string::npos);
+  const size_t end = example.find(marker, begin + marker.size());
+  ASSERT_NE(end, std::string::npos);
+  const std::string excerpt = example.substr(begin + marker.size(), end - begin - marker.size());
+  EXPECT_GT(excerpt.size(), 200u);
+  const std::string readme = slurp(test::SourceDir() / "README.md");
+  EXPECT_NE(readme.find("```cpp\n" + excerpt + "```\n"), std::string::npos)
+      << "README.md's Online use section must show, verbatim:\n"
+      << excerpt;
 }
 
 }  // namespace

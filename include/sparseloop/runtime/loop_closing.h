@@ -122,6 +122,7 @@ class LoopClosing {
   const LoopDetector& detector() const { return detector_; }
   size_t num_keyframes() const;  // keyframes accepted by AddKeyframe
   size_t num_loops() const;      // loop edges sent to the optimiser
+  uint64_t num_solves() const;   // solves run so far (BackgroundOptimizer::num_solves; 0 without)
   // The optimiser's graph, after Finish() with optimize (throws std::invalid_argument otherwise).
   const PoseGraph& graph() const;
 
