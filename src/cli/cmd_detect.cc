@@ -188,6 +188,7 @@ int RunDetect(int argc, char** argv) {
         {"total", Stats(t_total)}}},
       {"total_ms", wall_ms},
       {"status_counts", StatusCountsJson(frame_results)},
+      {"loop_sources", SourceCountsJson(frame_results)},
       {"cross_session_loops",
        std::count_if(loops.begin(), loops.end(),
                      [](const LoopResult& l) { return l.match_session != 0; })},

@@ -255,10 +255,11 @@ std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
 
 void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
   WriteFileAtomically(path, [&](std::ostream& os) {
-    os << "frame,status,candidates,matches,inliers,match\n";
+    os << "frame,status,candidates,matches,inliers,match,source\n";
     for (const LoopResult& r : results) {
       os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ',' << r.matches
-         << ',' << r.inliers << ',' << r.match_id << '\n';
+         << ',' << r.inliers << ',' << r.match_id << ',' << (r.detected() ? ToString(r.source) : "")
+         << '\n';
     }
   });
 }
@@ -272,6 +273,15 @@ nlohmann::json StatusCountsJson(const std::vector<LoopResult>& results) {
     counts[ToString(s)] = 0;
   }
   for (const auto& r : results) counts[ToString(r.status)]++;
+  return counts;
+}
+
+nlohmann::json SourceCountsJson(const std::vector<LoopResult>& results) {
+  std::map<std::string, int> counts;
+  for (CandidateSource s : {CandidateSource::kSearchArea, CandidateSource::kAppearance})
+    counts[ToString(s)] = 0;
+  for (const auto& r : results)
+    if (r.detected()) counts[ToString(r.source)]++;
   return counts;
 }
 
@@ -328,6 +338,7 @@ nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size
   j["loops"] = loops;
   j["bytes_per_keyframe"] = bytes_per_keyframe;
   j["status_counts"] = StatusCountsJson(results);
+  j["loop_sources"] = SourceCountsJson(results);
   std::map<std::string, std::vector<double>> stages;
   for (const auto& r : results) {
     stages["extract"].push_back(r.timings.extract_ms);

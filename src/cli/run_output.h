@@ -95,10 +95,13 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
 // The image name columns of one loops.csv row: ",query_image,match_image".
 std::string ImageColumns(const LoopResult& loop, const ImageNames& images);
 // frames.csv: why each processed frame did or did not close a loop, one row per frame:
-// frame,status,candidates,matches,inliers,match (match -1 when no candidate was matched).
+// frame,status,candidates,matches,inliers,match,source (match -1 when no candidate was matched;
+// source "area" / "appearance" on detected rows, else empty).
 void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results);
 // {"status": count} over `results` (every status name, 0 included).
 nlohmann::json StatusCountsJson(const std::vector<LoopResult>& results);
+// Detected loops per LoopResult::source ("area", "appearance"; both keys, 0 included).
+nlohmann::json SourceCountsJson(const std::vector<LoopResult>& results);
 // timings.csv: one row per processed keyframe: keyframe,status,extract_ms,search_ms,match_ms,
 // verify_ms,total_ms (only millisecond columns besides the first two; report.py plots each).
 void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr);

@@ -33,6 +33,10 @@ const char* ToString(LoopStatus status) {
   return "unknown";
 }
 
+const char* ToString(CandidateSource source) {
+  return source == CandidateSource::kAppearance ? "appearance" : "area";
+}
+
 const char* ToString(CandidateRetrieval retrieval) {
   return retrieval == CandidateRetrieval::kAnn ? "ann" : "brute_force";
 }
@@ -78,6 +82,9 @@ void LoopDetector::Options::Check() const {
                    planar_alternative_tolerance <= 1,
                "planar_alternative_tolerance must be in (0, 1], got {}",
                planar_alternative_tolerance);
+  SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
+  SL_CHECK_MSG(agreement_window >= 1, "agreement_window must be >= 1 keyframe, got {}",
+               agreement_window);
   SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
   SL_CHECK_MSG(std::isfinite(small_k_fraction) && small_k_fraction > 0 && small_k_fraction <= 1,
                "small_k_fraction must be in (0, 1], got {}", small_k_fraction);
@@ -274,7 +281,38 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     candidates = RetrieveByVotes(query, index, candidates);  // index insert + vote query
   result.timings.search_ms = stage.ElapsedMs();
 
-  SearchAndVerify(query, std::move(candidates), &result);
+  SearchAndVerify(query, candidates, &result);
+  if (!result.detected() && options_.appearance_fallback && query.has_pose &&
+      options_.search.strategy != SearchStrategy::kGlobal) {
+    // Every eligible stored keyframe the area did not hold, far along the path.
+    stage.Restart();
+    std::vector<int64_t> in_area = candidates;
+    std::sort(in_area.begin(), in_area.end());
+    const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+    std::vector<int64_t> others;
+    for (size_t ci = 0; ci + exclude < index; ++ci) {
+      const KeyframeRecord& c = records_[ci];
+      if (!c.has_pose || std::binary_search(in_area.begin(), in_area.end(), c.id)) continue;
+      if (options_.min_path_ratio > 0) {
+        const double chord =
+            (query.world_from_cam.translation - c.world_from_cam.translation).norm();
+        if (path_length_[index] - path_length_[ci] < options_.min_path_ratio * chord) continue;
+      }
+      others.push_back(c.id);
+    }
+    const double fallback_search_ms = stage.ElapsedMs();
+    LoopResult fallback;
+    fallback.query_id = query.id;
+    SearchAndVerify(query, std::move(others), &fallback);
+    result.timings.search_ms += fallback_search_ms;
+    result.timings.match_ms += fallback.timings.match_ms;
+    result.timings.verify_ms += fallback.timings.verify_ms;
+    if (fallback.detected()) {
+      fallback.timings = result.timings;
+      fallback.source = CandidateSource::kAppearance;
+      result = fallback;
+    }
+  }
   if (result.detected()) {
     SetWorldFromQuery(records_[index_of_.at(result.match_id)], &result);
   } else if (options_.search_prior_sessions && !prior_records_.empty()) {
@@ -457,9 +495,8 @@ struct CandidateRanking {
 
 template <typename RecordAt, typename TieKey, typename Match>
 CandidateRanking RankCandidates(size_t num_candidates, RecordAt&& record_at, TieKey&& tie_key,
-                                Match&& match, const LoopDetector::Options& options) {
+                                Match&& match, int min_matches, int max_distance) {
   CandidateRanking out;
-  const int min_matches = options.EffectiveMinMatches();
   for (size_t e = 0; e < num_candidates; ++e) {
     auto m = match(record_at(e));
     const int n = static_cast<int>(m.size());
@@ -468,7 +505,7 @@ CandidateRanking RankCandidates(size_t num_candidates, RecordAt&& record_at, Tie
       out.best_entry = e;
     }
     if (n < min_matches) continue;
-    const double s = MatchScore(m, options.match.max_distance);
+    const double s = MatchScore(m, max_distance);
     out.ranked.push_back({e, std::move(m), s, tie_key(e)});
   }
   std::sort(out.ranked.begin(), out.ranked.end(),
@@ -494,7 +531,7 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   const CandidateRanking ranking = RankCandidates(
       pool.size(), [&](size_t e) -> const KeyframeRecord& { return *pool[e].record; },
       [](size_t e) { return e; }, [&](const KeyframeRecord& r) { return MatchQuery(query, r); },
-      options_);
+      options_.EffectiveMinMatches(), options_.match.max_distance);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms += stage.ElapsedMs();
   if (ranked.empty()) {
@@ -692,6 +729,15 @@ size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_en
   return start;
 }
 
+bool LoopDetector::Agrees(size_t query_index, size_t match_index) const {
+  if (!last_support_ || last_support_->first >= query_index) return false;
+  const size_t dq = query_index - last_support_->first;
+  const size_t dm = match_index > last_support_->second ? match_index - last_support_->second
+                                                        : last_support_->second - match_index;
+  const size_t window = static_cast<size_t>(options_.agreement_window);
+  return dq <= window && dm <= window + dq;
+}
+
 LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
                                                            size_t match_index) const {
   auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
@@ -762,13 +808,19 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   }
   // 4. Hamming matching against every candidate; rank by match count, then score, then id.
   Timer stage;
+  const bool weak_enabled = options_.weak_pairs && options_.weak_min_inliers < verify_.min_inliers;
+  VerifyOptions verify = verify_;
+  if (weak_enabled) verify.min_inliers = options_.weak_min_inliers;
   std::vector<size_t> record_index(candidates.size());
   for (size_t e = 0; e < candidates.size(); ++e) record_index[e] = index_of_.at(candidates[e]);
   const CandidateRanking ranking = RankCandidates(
       candidates.size(),
       [&](size_t e) -> const KeyframeRecord& { return records_[record_index[e]]; },
       [&](size_t e) { return record_index[e]; },
-      [&](const KeyframeRecord& r) { return MatchQuery(query, r); }, options_);
+      [&](const KeyframeRecord& r) { return MatchQuery(query, r); },
+      weak_enabled ? std::min(options_.EffectiveMinMatches(), options_.weak_min_inliers)
+                   : options_.EffectiveMinMatches(),
+      options_.match.max_distance);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms = stage.ElapsedMs();
   if (ranked.empty()) {
@@ -784,11 +836,12 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   LoopStatus status = LoopStatus::kTooFewInliers;
   bool have_best = false;
   const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
+  std::optional<size_t> support;  // match index of this query's first gate-passing pair
   for (int r = 0; r < n_verify; ++r) {
     const auto& cand = ranked[r];
     const size_t match_index = record_index[cand.entry];
     const KeyframeRecord& match = records_[match_index];
-    VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
+    VerificationResult v = VerifyPair(query, match, cand.matches, verify);
     int map_points = 0, map_inliers = 0;
     if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
         options_.local_map.enabled && match.has_pose) {
@@ -854,6 +907,13 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
           }
         }
       }
+      if (trial_status == LoopStatus::kDetected && weak_enabled) {
+        // Passed the gate: support for the next queries (committed after this query's loop).
+        if (!support) support = match_index;
+        const bool is_weak = trial.inliers < verify_.min_inliers && map_inliers == 0;
+        if (is_weak && !Agrees(query_index, match_index))
+          trial_status = LoopStatus::kRejectedByTemporal;
+      }
       if (trial_status == LoopStatus::kDetected && options_.temporal_check) {
         const bool confirmed =
             last_verified_ &&
@@ -880,6 +940,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     }
     if (status == LoopStatus::kDetected) break;
   }
+  if (support) last_support_ = std::make_pair(query_index, *support);
   result->status = status;
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {

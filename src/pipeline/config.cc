@@ -278,6 +278,15 @@ void AddDetectorKeys(KeyList& k) {
         "store first the features re-found in this many previous keyframes [0, 16] (0: off)");
   k.Add(d + "repeatability_pool", SL_FIELD(detector.repeatability_pool), "features",
         "repeatability ranking: best-ranked features that compete for the K (>= 5)");
+  k.Add(d + "weak_pairs", SL_FIELD(detector.weak_pairs), "",
+        "accept pairs below the inlier floor when the keyframe before verified the same place");
+  k.Add(d + "weak_min_inliers", SL_FIELD(detector.weak_min_inliers), "inliers",
+        "weak pairs: fewest inliers (>= 5)");
+  k.Add(d + "agreement_window", SL_FIELD(detector.agreement_window), "keyframes",
+        "weak pairs: the agreeing pair's query is at most this many keyframes back (>= 1)");
+  k.Add(d + "appearance_fallback", SL_FIELD(detector.appearance_fallback), "",
+        "no loop in the search area: rank every stored keyframe by descriptor matches and "
+        "verify the best");
   k.Add(d + "check_every", SL_FIELD(detector.check_every), "keyframes",
         "run the loop check every N keyframes (>= 1)");
   k.Add(d + "min_matches", SL_FIELD(detector.min_matches), "matches",

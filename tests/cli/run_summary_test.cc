@@ -211,5 +211,33 @@ TEST(CliRunSummary, GtRevisitsNeedPathBetweenTheFrames) {
             2);
 }
 
+// bench/configs/sparse_k15.json (issue #19, docs/DETECTOR.md "Sparse K = 15"): K = 15 records
+// (about 1/16 of the default's bytes), and on the rendered circuit at least the correct loops the
+// paper's symmetric K = 15 finds, no false one; summary.json counts the loops per source. Correct
+// = GT distance < 35 m, the aerial rule of docs/BENCHMARKS.md: the nadir views of neighbouring
+// frames (17 m apart here) overlap, so a match one frame off is a true loop.
+TEST(CliRunSummary, SparsePresetKeepsK15AndFindsMoreThanSymmetricK15) {
+  const fs::path& seq = RenderedLoopSequence();
+  ASSERT_FALSE(seq.empty());
+  const auto dir = TempDir();
+  std::ofstream(dir / "sym.json") << R"({"detector": {"features": {"max_features": 15}}})";
+  const auto run = [&](const std::string& name, const fs::path& config) {
+    const CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                                (seq / "poses_raw.txt").string(), "--config", config.string(),
+                                "--gt-loop-distance", "35", "--out", (dir / name).string()});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return ReadJson(dir / name / "summary.json");
+  };
+  const auto sparse = run("sparse", SourceDir() / "bench" / "configs" / "sparse_k15.json");
+  const auto sym = run("sym", dir / "sym.json");
+  EXPECT_LT(sparse["bytes_per_keyframe"].get<double>(), 1000.0);
+  EXPECT_EQ(sparse["loop_false_positives"].get<int>(), 0);
+  EXPECT_GE(sparse["loop_true_positives"].get<int>(), sym["loop_true_positives"].get<int>());
+  EXPECT_GT(sparse["loop_true_positives"].get<int>(), 0);
+  const auto& sources = sparse["loop_sources"];
+  EXPECT_EQ(sources["area"].get<int>() + sources["appearance"].get<int>(),
+            sparse["status_counts"]["detected"].get<int>());
+}
+
 }  // namespace
 }  // namespace sparseloop::test

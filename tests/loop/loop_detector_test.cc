@@ -225,6 +225,93 @@ TEST(LoopDetector, RepeatabilityRankingStoresWhatTheKeyframeBeforeSaw) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
+// Weak pairs (issue #19, item 3): with the inlier floor at K (so every real pair here is weak),
+// the first keyframe of a revisit is verified but unconfirmed (kRejectedByTemporal), the second,
+// whose match is next to the first's, is confirmed by it and detected; an isolated weak pair is
+// never detected. Without weak pairs neither is detected (too few matches for the K floor).
+TEST(LoopDetector, WeakPairsNeedTheAgreementOfTheKeyframeBefore) {
+  const cv::Mat place = Textured(31);
+  std::vector<cv::Mat> frames = {place, Shifted(place)};
+  for (uint64_t seed : {32, 33, 34, 35}) frames.push_back(Textured(seed));
+  frames.push_back(Shifted(Shifted(place)));           // 6: revisit of 0 / 1
+  frames.push_back(Shifted(Shifted(Shifted(place))));  // 7: revisit of 1 / 0
+  frames.push_back(Textured(36));
+  auto run = [&](int weak) {
+    LoopDetector::Options o = GlobalNoExclusion();
+    o.search.exclude_recent = 3;
+    o.features.max_features = 15;
+    o.small_k_floor = 15;  // floor = K: every pair below is weak
+    o.weak_pairs = weak > 0;
+    if (weak > 0) o.weak_min_inliers = weak;
+    LoopDetector detector(o);
+    std::vector<LoopResult> out;
+    for (size_t i = 0; i < frames.size(); ++i)
+      out.push_back(detector.Process(Input(static_cast<int64_t>(i), frames[i])));
+    return out;
+  };
+  const auto strict = run(0);
+  EXPECT_FALSE(strict[6].detected()) << ToString(strict[6].status);
+  EXPECT_FALSE(strict[7].detected()) << ToString(strict[7].status);
+  const auto weak = run(6);
+  EXPECT_EQ(weak[6].status, LoopStatus::kRejectedByTemporal) << ToString(weak[6].status);
+  EXPECT_GE(weak[6].inliers, 6);
+  ASSERT_EQ(weak[7].status, LoopStatus::kDetected) << ToString(weak[7].status);
+  EXPECT_LE(weak[7].match_id, 1);
+  EXPECT_LT(weak[7].inliers, 15);
+  for (size_t i = 0; i < 6; ++i) EXPECT_FALSE(weak[i].detected()) << i;
+  EXPECT_FALSE(weak[8].detected());
+  LoopDetector::Options bad;
+  bad.weak_pairs = true;
+  bad.weak_min_inliers = 4;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+  bad.weak_min_inliers = 6;
+  bad.agreement_window = 0;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+// Appearance fallback (issue #17): the drifted raw pose puts the revisit far from its first visit,
+// so the search area (a radius here) holds no candidate; the fallback ranks every stored keyframe
+// and finds the same loop as a global (brute-force) search does, reported as kAppearance.
+TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
+  const cv::Mat place = Textured(1);
+  std::vector<cv::Mat> frames = {place};
+  for (uint64_t seed : {2, 3, 4, 5, 6}) frames.push_back(Textured(seed));
+  frames.push_back(Shifted(place));  // 6: the revisit of 0
+  auto run = [&](SearchStrategy strategy, bool fallback) {
+    LoopDetector::Options o;
+    o.search.strategy = strategy;
+    o.search.radius = 1.0;
+    o.search.exclude_recent = 2;
+    o.min_path_ratio = 0;
+    o.appearance_fallback = fallback;
+    LoopDetector detector(o);
+    LoopResult last;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
+      // Out along x, the revisit drifted 50 m sideways of frame 0's raw position.
+      in.world_from_cam =
+          i < 6 ? Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                        Eigen::Vector3d(100.0 * static_cast<double>(i), 0, 0))
+                : Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 50, 0));
+      last = detector.Process(in);
+    }
+    return last;
+  };
+  const LoopResult area = run(SearchStrategy::kRadius, false);
+  EXPECT_EQ(area.status, LoopStatus::kNoCandidates) << ToString(area.status);
+  const LoopResult fallback = run(SearchStrategy::kRadius, true);
+  const LoopResult global = run(SearchStrategy::kGlobal, false);
+  ASSERT_TRUE(global.detected()) << ToString(global.status);
+  ASSERT_TRUE(fallback.detected()) << ToString(fallback.status);
+  EXPECT_EQ(fallback.source, CandidateSource::kAppearance);
+  EXPECT_EQ(global.source, CandidateSource::kSearchArea);
+  EXPECT_EQ(fallback.match_id, 0);
+  EXPECT_EQ(fallback.match_id, global.match_id);
+  EXPECT_EQ(fallback.matches, global.matches);
+  EXPECT_EQ(fallback.inliers, global.inliers);
+  EXPECT_STREQ(ToString(CandidateSource::kAppearance), "appearance");
+}
+
 TEST(LoopDetector, CheckEveryNSkipsButStores) {
   LoopDetector::Options o = GlobalNoExclusion();
   o.check_every = 2;

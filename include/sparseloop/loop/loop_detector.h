@@ -63,6 +63,13 @@ const char* ToString(CandidateRetrieval retrieval);
 // "brute_force" | "ann"; throws std::invalid_argument otherwise.
 CandidateRetrieval ParseCandidateRetrieval(const std::string& name);
 
+// Where the loop's candidate came from (issue #17).
+enum class CandidateSource {
+  kSearchArea,  // the search area on the raw trajectory (the paper's wedge, or global search)
+  kAppearance,  // the appearance fallback over every stored keyframe (Options::appearance_fallback)
+};
+const char* ToString(CandidateSource source);  // "area" | "appearance"
+
 struct StageTimings {
   double extract_ms = 0.0;  // feature extraction, ms
   double search_ms = 0.0;   // search area, ms
@@ -79,6 +86,8 @@ struct LoopResult {
   // Query without a pose: search-area keyframes dropped because they still share the scene with
   // the query (Options::overlap_gap), count; 0 otherwise.
   int overlap_excluded = 0;
+  // kAppearance when the search area gave no loop and the appearance fallback found match_id.
+  CandidateSource source = CandidateSource::kSearchArea;
   int matches = 0;     // descriptor matches with match_id, count
   int inliers = 0;     // geometric inliers with match_id, count
   double score = 0.0;  // inliers / K (K = options.features.max_features), in [0, 1]
@@ -210,6 +219,18 @@ class LoopDetector {
     // planar) has alternatives 5.4 / 7.4 deg from the GT prior (tolerance 12.8 -> 5.1 deg, both
     // rejected), EuRoC pair (2,3) one 2.4 deg off (10.1 -> 4.0 deg, accepted). In (0, 1].
     double planar_alternative_tolerance = 0.4;
+    // Weak pairs (issue #19, item 3), when weak_pairs: a pair verified with at least
+    // weak_min_inliers inliers but
+    // fewer than the inlier floor (EffectiveMinInliers) is a loop only when one of the previous
+    // agreement_window keyframes verified a pair on the same place that passed the rotation
+    // gate (weak or not): its match within agreement_window + (their query distance) keyframes
+    // of this match. A loop is a run of keyframes; a chance pair stands alone. An unconfirmed weak
+    // pair ends kRejectedByTemporal. Candidates need only weak_min_inliers descriptor matches
+    // then. Off: the floor alone decides. weak_min_inliers >= 5 (no effect at or above the
+    // floor); agreement_window in keyframes >= 1.
+    bool weak_pairs = false;
+    int weak_min_inliers = 6;
+    int agreement_window = 3;
     // Temporal consistency: accept only when the previous check keyframe also verified a match
     // within temporal_window keyframes (by index) of this match.
     bool temporal_check = false;
@@ -219,6 +240,14 @@ class LoopDetector {
     // min_path_ratio) allow, and the ann.max_candidates top-voted go to matching + verification.
     CandidateRetrieval retrieval = CandidateRetrieval::kBruteForce;
     BinaryAnnOptions ann;  // index and voting parameters (used when retrieval == kAnn)
+    // Appearance fallback (issue #17): when the search area on the raw trajectory gives no
+    // loop for a query with a pose, every stored keyframe it did not hold (older than
+    // search.exclude_recent, far along the path: min_path_ratio) is ranked by descriptor matches
+    // with the query and the best max_verify are verified, with the same floors and the same
+    // rotation gate. Drift moves the true match out of the wedge (aerial circuit, K = 15:
+    // recall 0.64 in the area, 0.97 with global search); a small K makes ranking all of them
+    // cheap (15 x 15 Hamming per stored keyframe). LoopResult::source says which one found it.
+    bool appearance_fallback = false;
     // Multi-session: on a check keyframe where the current session gives no loop, match the
     // keyframes of earlier sessions (AddPriorKeyframes) by appearance: their world frame (origin,
     // scale) differs, so no search area and no pose-prior rotation check apply; the same Hamming
@@ -360,6 +389,11 @@ class LoopDetector {
   };
   GraphPrior PriorAlongLoopGraph(size_t query_index, size_t match_index) const;
   std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
+  // The latest query with a verified pair that passed the rotation gate, weak or not (query
+  // index, match index): Options::weak_min_inliers.
+  std::optional<std::pair<size_t, size_t>> last_support_;
+  // Whether last_support_ confirms a weak pair (query index, match index).
+  bool Agrees(size_t query_index, size_t match_index) const;
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
   std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
