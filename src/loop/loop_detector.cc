@@ -251,18 +251,17 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   // 3. Search area, then the scale-free "far along the path" filter.
   stage.Restart();
   const SearchAreaResult area = search_.Query(query.id);
+  // Path between record ci and the query >= min_path_ratio x their distance (or unmeasurable).
+  auto far_along = [&](size_t ci) {
+    const KeyframeRecord& c = records_[ci];
+    if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose) return true;
+    const double chord = (query.world_from_cam.translation - c.world_from_cam.translation).norm();
+    return path_length_[index] - path_length_[ci] >= options_.min_path_ratio * chord;
+  };
   std::vector<int64_t> candidates;
   candidates.reserve(area.candidates.size());
-  for (int64_t id : area.candidates) {
-    const size_t ci = index_of_.at(id);
-    const auto& c = records_[ci];
-    if (options_.min_path_ratio > 0 && query.has_pose && c.has_pose) {
-      const double chord = (query.world_from_cam.translation - c.world_from_cam.translation).norm();
-      const double along = path_length_[index] - path_length_[ci];
-      if (along < options_.min_path_ratio * chord) continue;
-    }
-    candidates.push_back(id);
-  }
+  for (int64_t id : area.candidates)
+    if (far_along(index_of_.at(id))) candidates.push_back(id);
   if (!query.has_pose && options_.overlap_gap > 0 && !candidates.empty()) {
     const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
     const size_t start = OverlapStart(query, index > exclude ? index - exclude : 0);
@@ -292,13 +291,8 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     std::vector<int64_t> others;
     for (size_t ci = 0; ci + exclude < index; ++ci) {
       const KeyframeRecord& c = records_[ci];
-      if (!c.has_pose || std::binary_search(in_area.begin(), in_area.end(), c.id)) continue;
-      if (options_.min_path_ratio > 0) {
-        const double chord =
-            (query.world_from_cam.translation - c.world_from_cam.translation).norm();
-        if (path_length_[index] - path_length_[ci] < options_.min_path_ratio * chord) continue;
-      }
-      others.push_back(c.id);
+      if (c.has_pose && far_along(ci) && !std::binary_search(in_area.begin(), in_area.end(), c.id))
+        others.push_back(c.id);
     }
     const double fallback_search_ms = stage.ElapsedMs();
     LoopResult fallback;
