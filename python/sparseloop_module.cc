@@ -1,0 +1,452 @@
+// The Python module `sparseloop` (pybind11): the online LoopClosing with numpy images and poses,
+// the trajectory readers / writers and the evaluation metrics. A thin binding: options come from
+// the configuration registry (pipeline/config.h, the same keys as `--config`), results are numpy
+// arrays and dicts, sparseloop's exceptions become sparseloop.Error (FileError: FileError, a
+// subclass) or ValueError (std::invalid_argument) with the same message. The GIL is released while
+// the library works (AddKeyframe, Finish, WaitForIdle, reading and evaluating) and re-acquired for
+// the correction callback, which runs on the background thread.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <utility>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "sparseloop/core/error.h"
+#include "sparseloop/eval/json.h"
+#include "sparseloop/eval/metrics.h"
+#include "sparseloop/io/trajectory_io.h"
+#include "sparseloop/pipeline/config.h"
+#include "sparseloop/pipeline/pipeline.h"
+#include "sparseloop/runtime/loop_closing.h"
+
+namespace py = pybind11;
+
+namespace sparseloop {
+namespace {
+
+// A JSON value as a Python object through the json module (one conversion, exact for numbers).
+py::object ToPython(const nlohmann::json& j) {
+  return py::module_::import("json").attr("loads")(j.dump());
+}
+nlohmann::json FromPython(const py::object& o) {
+  const std::string text = py::module_::import("json").attr("dumps")(o).cast<std::string>();
+  return nlohmann::json::parse(text);
+}
+
+// 4x4 row-major matrix [sR t; 0 1] (scale = cube root of det(sR)) -> Sim3d.
+Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::forcecast>& m) {
+  if (m.ndim() != 2 || m.shape(0) < 3 || m.shape(0) > 4 || m.shape(1) != 4)
+    throw std::invalid_argument("a pose must be a 4x4 or 3x4 matrix, got " +
+                                std::to_string(m.ndim()) + " dimensions of sizes " +
+                                std::to_string(m.ndim() > 0 ? m.shape(0) : 0) + ", " +
+                                std::to_string(m.ndim() > 1 ? m.shape(1) : 0));
+  Eigen::Matrix3d sr;
+  Eigen::Vector3d t;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) sr(r, c) = m.at(r, c);
+    t(r) = m.at(r, 3);
+  }
+  const double det = sr.determinant();
+  if (!(det > 0.0) || !std::isfinite(det))
+    throw std::invalid_argument("a pose's rotation block must have a positive determinant");
+  const double scale = std::cbrt(det);
+  const Eigen::Matrix3d r = sr / scale;
+  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6)
+    throw std::invalid_argument("a pose's rotation block is not a scaled rotation (R^T R != I)");
+  return Sim3d(scale, Eigen::Quaterniond(r).normalized(), t);
+}
+
+// A pose argument: a 4x4 / 3x4 array, or a tuple (R 3x3, t 3[, scale]).
+std::optional<Sim3d> PoseFromPython(const py::object& o) {
+  if (o.is_none()) return std::nullopt;
+  if (py::isinstance<py::tuple>(o) || py::isinstance<py::list>(o)) {
+    const py::sequence s = o.cast<py::sequence>();
+    if (s.size() != 2 && s.size() != 3)
+      throw std::invalid_argument("a pose tuple must be (R, t) or (R, t, scale)");
+    const auto r = s[0].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
+    const auto t = s[1].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
+    if (r.ndim() != 2 || r.shape(0) != 3 || r.shape(1) != 3 || t.size() != 3)
+      throw std::invalid_argument("a pose tuple needs R of shape (3, 3) and t of 3 values");
+    py::array_t<double> m({4, 4});
+    auto w = m.mutable_unchecked<2>();
+    const double scale = s.size() == 3 ? s[2].cast<double>() : 1.0;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) w(i, j) = scale * r.at(i, j);
+      w(i, 3) = t.data()[i];
+      w(3, i) = 0.0;
+    }
+    w(3, 3) = 1.0;
+    return PoseFromMatrix(m);
+  }
+  return PoseFromMatrix(o.cast<py::array_t<double, py::array::c_style | py::array::forcecast>>());
+}
+
+py::array_t<double> ToNumpy(const Eigen::Matrix4d& m) {
+  py::array_t<double> a({4, 4});
+  auto w = a.mutable_unchecked<2>();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) w(r, c) = m(r, c);
+  return a;
+}
+
+py::array_t<double> PosesToNumpy(const std::vector<Eigen::Matrix4d>& poses) {
+  py::array_t<double> a({static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
+  auto w = a.mutable_unchecked<3>();
+  for (size_t i = 0; i < poses.size(); ++i)
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) w(i, r, c) = poses[i](r, c);
+  return a;
+}
+
+// A uint8 numpy image (H x W, or H x W x 1) -> a CV_8UC1 cv::Mat holding its own copy.
+cv::Mat ImageFromNumpy(const py::array& image) {
+  if (!py::isinstance<py::array_t<uint8_t>>(image))
+    throw std::invalid_argument("the image must be a uint8 array, got dtype " +
+                                std::string(py::str(image.dtype())));
+  const auto a = py::array_t<uint8_t, py::array::c_style | py::array::forcecast>::ensure(image);
+  if (!(a.ndim() == 2 || (a.ndim() == 3 && a.shape(2) == 1)))
+    throw std::invalid_argument("the image must be grayscale, shape (H, W), got " +
+                                std::to_string(a.ndim()) + " dimensions");
+  cv::Mat view(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), CV_8UC1,
+               const_cast<uint8_t*>(a.data()));
+  return view.clone();
+}
+
+py::dict ResultToDict(const LoopResult& r) {
+  py::dict d;
+  d["status"] = ToString(r.status);
+  d["detected"] = r.detected();
+  d["query_id"] = r.query_id;
+  d["match_id"] = r.match_id;
+  d["candidates"] = r.candidates;
+  d["matches"] = r.matches;
+  d["inliers"] = r.inliers;
+  d["score"] = r.score;
+  d["match_session"] = r.match_session;
+  d["match_from_query"] = ToNumpy(r.match_from_query.ToMatrix4());
+  d["scale"] = r.match_from_query.scale;
+  return d;
+}
+
+py::dict TrajectoryToDict(const Trajectory& t) {
+  py::array_t<double> stamps(static_cast<py::ssize_t>(t.size()));
+  py::array_t<int64_t> frames(static_cast<py::ssize_t>(t.size()));
+  std::vector<Eigen::Matrix4d> poses;
+  for (size_t i = 0; i < t.size(); ++i) {
+    stamps.mutable_at(i) = t.poses[i].timestamp;
+    frames.mutable_at(i) = t.poses[i].frame;
+    poses.push_back(t.poses[i].world_from_cam.ToMatrix4());
+  }
+  py::dict d;
+  d["timestamps"] = stamps;
+  d["frames"] = frames;
+  d["poses"] = PosesToNumpy(poses);
+  d["has_rotation"] = t.has_rotation;
+  d["has_timestamps"] = t.has_timestamps;
+  return d;
+}
+
+// (N, 4, 4) poses [+ N timestamps] -> Trajectory (SE(3): a scaled rotation is an error).
+Trajectory TrajectoryFromNumpy(
+    const py::array_t<double, py::array::c_style | py::array::forcecast>& poses,
+    const py::object& timestamps) {
+  if (poses.ndim() != 3 || poses.shape(1) != 4 || poses.shape(2) != 4)
+    throw std::invalid_argument("poses must have shape (N, 4, 4)");
+  const size_t n = static_cast<size_t>(poses.shape(0));
+  std::vector<double> stamps;
+  if (!timestamps.is_none()) {
+    stamps = timestamps.cast<std::vector<double>>();
+    if (stamps.size() != n)
+      throw std::invalid_argument("timestamps must have one value per pose (" + std::to_string(n) +
+                                  "), got " + std::to_string(stamps.size()));
+  }
+  Trajectory t;
+  t.has_timestamps = !stamps.empty();
+  for (size_t i = 0; i < n; ++i) {
+    py::array_t<double> m({4, 4});
+    std::copy(poses.data() + 16 * i, poses.data() + 16 * (i + 1), m.mutable_data());
+    const Sim3d pose = PoseFromMatrix(m);
+    if (std::abs(pose.scale - 1.0) > 1e-6)
+      throw std::invalid_argument("pose " + std::to_string(i) + " is not rigid (scale " +
+                                  std::to_string(pose.scale) + ")");
+    StampedPose p;
+    p.frame = static_cast<int64_t>(i);
+    p.timestamp = stamps.empty() ? static_cast<double>(i) : stamps[i];
+    p.world_from_cam = pose.ToRigid();
+    t.poses.push_back(p);
+  }
+  return t;
+}
+
+// PipelineOptions from a config dict (the `--config` keys, strict), then the LoopClosing options
+// that compute what `run` computes (the mapping of tests/runtime/loop_closing_test.cc).
+LoopClosing::Options ClosingOptions(const py::object& config, bool solve_while_running,
+                                    bool optimize) {
+  PipelineOptions p;
+  if (!config.is_none()) {
+    if (py::isinstance<py::str>(config))
+      LoadConfigFile(config.cast<std::string>(), &p);
+    else
+      ApplyConfig(FromPython(config), "config", &p);
+  }
+  LoopClosing::Options o;
+  o.detector = p.detector;
+  o.loop_edge = p;
+  o.optimizer.solve = p.optimizer;
+  o.optimizer.odometry = p.odometry;
+  o.optimizer.vertex_type = p.vertex_type;
+  o.optimizer.solve_while_running = solve_while_running;
+  o.optimize = optimize;
+  o.Check();
+  return o;
+}
+
+py::dict CorrectionsToDict(const CorrectedKeyframes& c) {
+  std::vector<Eigen::Matrix4d> poses;
+  for (const Sim3d& p : c.world_from_keyframe) poses.push_back(p.ToMatrix4());
+  py::dict d;
+  d["revision"] = c.revision;
+  d["ids"] = py::array_t<int64_t>(static_cast<py::ssize_t>(c.ids.size()), c.ids.data());
+  d["poses"] = PosesToNumpy(poses);
+  d["num_solved"] = c.num_solved;
+  return d;
+}
+
+// LoopClosing plus the loops it sent to the graph (for loops() / accepted_loops()).
+class PyLoopClosing {
+ public:
+  PyLoopClosing(const py::object& config, bool solve_while_running, bool optimize,
+                py::object on_correction) {
+    LoopClosing::CorrectionCallback cb;
+    if (!on_correction.is_none()) {
+      callback_ = std::make_shared<py::object>(std::move(on_correction));
+      std::shared_ptr<py::object> f = callback_;
+      cb = [f](const PoseCorrection& c) {
+        py::gil_scoped_acquire gil;  // background thread
+        try {
+          py::dict d;
+          d["revision"] = c.revision;
+          d["num_loops"] = c.num_loops;
+          d["ids"] = py::array_t<int64_t>(static_cast<py::ssize_t>(c.ids.size()), c.ids.data());
+          (*f)(d);
+        } catch (py::error_already_set& e) {
+          e.discard_as_unraisable("sparseloop correction callback");
+        }
+      };
+    }
+    closing_ = std::make_unique<LoopClosing>(ClosingOptions(config, solve_while_running, optimize),
+                                             std::move(cb));
+  }
+  ~PyLoopClosing() {
+    py::gil_scoped_release release;  // the destructor joins the thread, whose callback needs it
+    closing_.reset();
+  }
+
+  py::dict AddKeyframe(int64_t id, double timestamp, const py::array& image,
+                       const py::object& intrinsics, const py::object& pose,
+                       const py::object& mapped_pixels, const py::object& mapped_depths) {
+    KeyframeInput in;
+    in.id = id;
+    in.timestamp = timestamp;
+    in.image = ImageFromNumpy(image);
+    const auto k = intrinsics.cast<std::vector<double>>();
+    if (k.size() != 4) throw std::invalid_argument("intrinsics must be (fx, fy, cx, cy)");
+    in.intrinsics.fx = k[0];
+    in.intrinsics.fy = k[1];
+    in.intrinsics.cx = k[2];
+    in.intrinsics.cy = k[3];
+    in.intrinsics.width = in.image.cols;
+    in.intrinsics.height = in.image.rows;
+    in.world_from_cam = PoseFromPython(pose);
+    if (!mapped_pixels.is_none()) {
+      const auto px =
+          mapped_pixels.cast<py::array_t<float, py::array::c_style | py::array::forcecast>>();
+      if (px.ndim() != 2 || px.shape(1) != 2)
+        throw std::invalid_argument("mapped_pixels must have shape (N, 2)");
+      for (py::ssize_t i = 0; i < px.shape(0); ++i)
+        in.mapped_pixels.emplace_back(px.at(i, 0), px.at(i, 1));
+    }
+    if (!mapped_depths.is_none()) in.mapped_depths = mapped_depths.cast<std::vector<float>>();
+    LoopEvent e;
+    {
+      py::gil_scoped_release release;
+      e = closing_->AddKeyframe(in);
+    }
+    if (e.loop_in_graph) loops_.push_back(e.result);
+    py::dict d = ResultToDict(e.result);
+    d["in_graph"] = e.in_graph;
+    d["loop_in_graph"] = e.loop_in_graph;
+    d["loop_index"] = e.loop_index;
+    return d;
+  }
+
+  void Finish() {
+    py::gil_scoped_release release;
+    closing_->Finish();
+  }
+  void WaitForIdle() {
+    py::gil_scoped_release release;
+    closing_->WaitForIdle();
+  }
+  py::dict Corrections() const { return CorrectionsToDict(closing_->Corrections()); }
+  py::object CorrectedPose(int64_t id) const {
+    const auto p = closing_->CorrectedPose(id);
+    if (!p) return py::none();
+    return ToNumpy(p->world_from_keyframe.ToMatrix4());
+  }
+  // Loops sent to the graph: rows (query_id, match_id, inliers, accepted); accepted = 0 for the
+  // loops the latest solve rejected (PCM), 1 otherwise.
+  py::array_t<int64_t> Loops() const {
+    std::vector<bool> rejected(loops_.size(), false);
+    if (const auto latest = closing_->LatestSolve())
+      for (size_t i : latest->summary.rejected_loops)
+        if (i < rejected.size()) rejected[i] = true;
+    py::array_t<int64_t> a({static_cast<py::ssize_t>(loops_.size()), py::ssize_t{4}});
+    auto w = a.mutable_unchecked<2>();
+    for (size_t i = 0; i < loops_.size(); ++i) {
+      w(i, 0) = loops_[i].query_id;
+      w(i, 1) = loops_[i].match_id;
+      w(i, 2) = loops_[i].inliers;
+      w(i, 3) = rejected[i] ? 0 : 1;
+    }
+    return a;
+  }
+  const LoopClosing& closing() const { return *closing_; }
+
+ private:
+  std::shared_ptr<py::object> callback_;
+  std::unique_ptr<LoopClosing> closing_;
+  std::vector<LoopResult> loops_;
+};
+
+}  // namespace
+}  // namespace sparseloop
+
+PYBIND11_MODULE(_sparseloop, m) {
+  using namespace sparseloop;
+  m.doc() = "sparseloop: loop closure for monocular visual SLAM (see README, 'Python')";
+
+  static py::exception<Error> error(m, "Error", PyExc_RuntimeError);
+  static py::exception<FileError> file_error(m, "FileError", error.ptr());
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const FileError& e) {
+      PyErr_SetString(file_error.ptr(), e.what());
+    } catch (const Error& e) {
+      PyErr_SetString(error.ptr(), e.what());
+    } catch (const ConfigValueError& e) {
+      PyErr_SetString(PyExc_ValueError, ("expected " + e.expected + ", got " + e.got).c_str());
+    }
+  });  // std::invalid_argument -> ValueError: pybind11's own translation, message unchanged
+
+  py::class_<PyLoopClosing>(m, "LoopClosing", R"doc(
+The online loop closer (C++ runtime::LoopClosing).
+
+config: None, a dict of `--config` keys ({"detector": {"features": {"max_features": 15}}}) or
+the path of a JSON config file. solve_while_running=False solves once, in finish(), as
+`sparseloop run` does. on_correction(dict) runs on the background thread after each solve.)doc")
+      .def(py::init<const py::object&, bool, bool, py::object>(), py::arg("config") = py::none(),
+           py::arg("solve_while_running") = true, py::arg("optimize") = true,
+           py::arg("on_correction") = py::none())
+      .def("add_keyframe", &PyLoopClosing::AddKeyframe, py::arg("id"), py::arg("timestamp"),
+           py::arg("image"), py::arg("intrinsics"), py::arg("pose") = py::none(),
+           py::arg("mapped_pixels") = py::none(), py::arg("mapped_depths") = py::none(),
+           "Detects a loop for the keyframe (uint8 (H, W) image; intrinsics (fx, fy, cx, cy); "
+           "pose: 4x4 world_from_cam or (R, t[, scale]); None = tracking lost) and queues it for "
+           "the background solve. Returns the loop event as a dict.")
+      .def("finish", &PyLoopClosing::Finish, "Final solve; joins the background thread.")
+      .def("wait_for_idle", &PyLoopClosing::WaitForIdle)
+      .def("corrections", &PyLoopClosing::Corrections,
+           "{'revision', 'ids' (N,), 'poses' (N, 4, 4) corrected world_from_keyframe, "
+           "'num_solved'}")
+      .def("corrected_pose", &PyLoopClosing::CorrectedPose, py::arg("id"))
+      .def("loops", &PyLoopClosing::Loops,
+           "Loops sent to the graph, int64 (M, 4): query_id, match_id, inliers, accepted")
+      .def_property_readonly("num_keyframes",
+                             [](const PyLoopClosing& c) { return c.closing().num_keyframes(); })
+      .def_property_readonly("num_loops",
+                             [](const PyLoopClosing& c) { return c.closing().num_loops(); })
+      .def_property_readonly("num_solves",
+                             [](const PyLoopClosing& c) { return c.closing().num_solves(); })
+      .def_property_readonly("finished",
+                             [](const PyLoopClosing& c) { return c.closing().finished(); });
+
+  m.def(
+      "default_config",
+      [](const std::string& scope) { return ToPython(DumpConfig(PipelineOptions{}, scope)); },
+      py::arg("scope") = "",
+      "Every config key with its default, plus 'doc' (as `sparseloop config --dump`).");
+
+  m.def(
+      "read_trajectory",
+      [](const std::string& path, const std::string& format) {
+        Trajectory t;
+        {
+          py::gil_scoped_release release;
+          t = ReadTrajectory(path, ParseTrajectoryFormat(format));
+        }
+        return TrajectoryToDict(t);
+      },
+      py::arg("path"), py::arg("format") = "auto",
+      "TUM / KITTI / EuRoC / positions file -> {'timestamps', 'frames', 'poses' (N, 4, 4), "
+      "'has_rotation', 'has_timestamps'}");
+  m.def(
+      "write_trajectory",
+      [](const std::string& path,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& poses,
+         const py::object& timestamps, const std::string& format) {
+        const Trajectory t = TrajectoryFromNumpy(poses, timestamps);
+        py::gil_scoped_release release;
+        WriteTrajectory(path, t, ParseTrajectoryFormat(format));
+      },
+      py::arg("path"), py::arg("poses"), py::arg("timestamps") = py::none(),
+      py::arg("format") = "tum");
+  m.def(
+      "evaluate_trajectory",
+      [](const std::string& gt_path, const std::string& est_path, const std::string& alignment) {
+        nlohmann::json j;
+        {
+          py::gil_scoped_release release;
+          EvaluationOptions options;
+          options.alignment = ParseAlignment(alignment);
+          j = ToJson(
+              EvaluateTrajectory(ReadTrajectory(gt_path), ReadTrajectory(est_path), options));
+        }
+        return ToPython(j);
+      },
+      py::arg("gt"), py::arg("est"), py::arg("alignment") = "sim3",
+      "ATE / RPE / KITTI metrics of two trajectory files, the dict `sparseloop eval --json` "
+      "writes for a trajectory.");
+  m.def(
+      "read_image",
+      [](const std::string& path) {
+        const cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+        if (img.empty()) throw FileError(path, 0, "an image file", "unreadable");
+        py::array_t<uint8_t> a({img.rows, img.cols});
+        for (int r = 0; r < img.rows; ++r)
+          std::copy(img.ptr<uint8_t>(r), img.ptr<uint8_t>(r) + img.cols, a.mutable_data(r, 0));
+        return a;
+      },
+      py::arg("path"), "An image file as a uint8 (H, W) grayscale array.");
+  m.def(
+      "read_mapped_pixels",
+      [](const std::string& path) {
+        const MappedPixels mp = ReadMappedPixels(path);
+        py::array_t<float> px({static_cast<py::ssize_t>(mp.pixels.size()), py::ssize_t{2}});
+        for (size_t i = 0; i < mp.pixels.size(); ++i) {
+          px.mutable_at(i, 0) = mp.pixels[i].x;
+          px.mutable_at(i, 1) = mp.pixels[i].y;
+        }
+        py::array_t<float> depths(static_cast<py::ssize_t>(mp.depths.size()), mp.depths.data());
+        return py::make_tuple(px, depths);
+      },
+      py::arg("path"),
+      "A mapped/NNNNNN.txt file ('u v depth' per line) -> (pixels (N, 2), depths)");
+}

@@ -1,0 +1,161 @@
+"""The Python module against the CLI and against known answers (python/sparseloop_module.cc)."""
+import csv
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import sparseloop
+
+
+def read_frames(seq):
+    """The frames as `sparseloop run --dataset kitti:SEQ --poses SEQ/poses_raw.txt` builds them."""
+    p0 = [float(v) for v in (seq / "calib.txt").read_text().splitlines()[0].split()[1:]]
+    intrinsics = (p0[0], p0[5], p0[2], p0[6])
+    times = [float(t) for t in (seq / "times.txt").read_text().split()]
+    raw = sparseloop.read_trajectory(str(seq / "poses_raw.txt"))
+    assert len(raw["poses"]) == len(times)
+    for i, t in enumerate(times):
+        pixels, depths = sparseloop.read_mapped_pixels(str(seq / "mapped" / f"{i:06d}.txt"))
+        yield dict(id=i, timestamp=t, image=sparseloop.read_image(str(seq / "image_0" / f"{i:06d}.png")),
+                   intrinsics=intrinsics, pose=raw["poses"][i], mapped_pixels=pixels,
+                   mapped_depths=depths)
+
+
+def test_same_loops_and_trajectory_as_cli_run(sequence, cli, tmp_path):
+    out = tmp_path / "run"
+    subprocess.run([cli, "run", "--dataset", f"kitti:{sequence}", "--poses",
+                    str(sequence / "poses_raw.txt"), "--out", str(out)],
+                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    with open(out / "loops.csv") as f:
+        rows = list(csv.DictReader(f))
+    cli_loops = [(int(r["query"]), int(r["match"])) for r in rows]
+    cli_accepted = [(int(r["query"]), int(r["match"])) for r in rows if r["accepted"] == "1"]
+    assert len(cli_loops) >= 10  # the second lap closes loops
+
+    # solve_while_running=False: one solve in finish() over every loop, as `run` does.
+    closing = sparseloop.LoopClosing(solve_while_running=False)
+    statuses = [closing.add_keyframe(**frame)["status"] for frame in read_frames(sequence)]
+    closing.finish()
+    loops = closing.loops()
+    assert loops.dtype == np.int64 and loops.shape == (len(cli_loops), 4)
+    assert [tuple(l[:2]) for l in loops] == cli_loops
+    assert [tuple(l[:2]) for l in loops if l[3] == 1] == cli_accepted
+    assert statuses.count("detected") == len(cli_loops)
+
+    corrected = closing.corrections()
+    ref = sparseloop.read_trajectory(str(out / "trajectory.txt"))
+    np.testing.assert_array_equal(corrected["ids"], np.arange(60))
+    assert corrected["num_solved"] == 60 and closing.num_solves == 1
+    # Same detector, graph and deterministic solve (tests/runtime/loop_closing_test.cc: 1e-9);
+    # trajectory.txt prints 15-16 significant digits of positions up to ~100 m, so 1e-6 m covers
+    # the text round-off. A single different loop moves poses by metres.
+    position_gap = np.abs(corrected["poses"][:, :3, 3] - ref["poses"][:, :3, 3]).max()
+    assert position_gap < 1e-6
+    # Corrected poses are Sim(3): compare rotations with the scale divided out.
+    scale = np.cbrt(np.linalg.det(corrected["poses"][:, :3, :3]))
+    rotations = corrected["poses"][:, :3, :3] / scale[:, None, None]
+    assert np.abs(rotations - ref["poses"][:, :3, :3]).max() < 1e-6
+    # The drift was corrected: the corrected trajectory differs from the raw one by metres.
+    raw = sparseloop.read_trajectory(str(sequence / "poses_raw.txt"))
+    assert np.abs(corrected["poses"][:, :3, 3] - raw["poses"][:, :3, 3]).max() > 1.0
+
+
+def test_callback_runs_on_each_solve_with_the_gil(sequence):
+    seen = []
+    closing = sparseloop.LoopClosing(config={"optimizer": {"rejection": "pcm"}},
+                                     on_correction=lambda c: seen.append(int(c["revision"])))
+    for frame in read_frames(sequence):
+        closing.add_keyframe(**frame)
+    closing.finish()
+    assert seen and seen == list(range(1, len(seen) + 1)) and closing.num_solves == len(seen)
+    assert closing.corrected_pose(59).shape == (4, 4)
+    assert closing.corrected_pose(1000) is None
+
+
+def blank(i, **kw):
+    args = dict(id=i, timestamp=0.1 * i, image=np.full((120, 160), 128, np.uint8),
+                intrinsics=(150.0, 150.0, 79.5, 59.5), pose=np.eye(4))
+    args.update(kw)
+    return args
+
+
+def test_bad_input_raises_with_the_library_message():
+    closing = sparseloop.LoopClosing()
+    with pytest.raises(ValueError, match="uint8"):
+        closing.add_keyframe(**blank(0, image=np.zeros((120, 160), np.float32)))
+    with pytest.raises(ValueError, match=r"4x4 or 3x4"):
+        closing.add_keyframe(**blank(0, pose=np.eye(3)))
+    with pytest.raises(ValueError, match="scaled rotation"):
+        closing.add_keyframe(**blank(0, pose=np.diag([1.0, 2.0, 1.0, 1.0])))
+    event = closing.add_keyframe(**blank(1, pose=(np.eye(3), np.zeros(3))))
+    assert event["status"] == "no_features" and event["in_graph"]
+    # Ids must increase: the C++ check's message, unchanged.
+    with pytest.raises(ValueError, match=r"keyframe id 1 must be greater than the previous"):
+        closing.add_keyframe(**blank(1))
+    closing.finish()
+    with pytest.raises(ValueError):
+        closing.add_keyframe(**blank(2))
+
+
+def test_config_keys_are_the_cli_registry(cli):
+    cli_dump = json.loads(subprocess.run([cli, "config", "--dump", "run"], check=True,
+                                         capture_output=True, text=True).stdout)
+    assert sparseloop.default_config() == cli_dump
+    with pytest.raises(sparseloop.FileError, match="detector.features.max_feature"):
+        sparseloop.LoopClosing(config={"detector": {"features": {"max_feature": 15}}})
+    # An invalid value: the options' Check() message, inside the config error naming the source.
+    with pytest.raises(sparseloop.FileError, match=r"max_features \(K\) must be in \[5, 10000\]"):
+        sparseloop.LoopClosing(config={"detector": {"features": {"max_features": -1}}})
+    sparseloop.LoopClosing(config={"detector": {"features": {"max_features": 15}}}, optimize=False)
+
+
+def rotation_z(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def test_trajectory_round_trip_and_file_errors(tmp_path):
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    for i in range(5):
+        poses[i, :3, :3] = rotation_z(0.3 * i)
+        poses[i, :3, 3] = [i, 2.0 * i, -0.5 * i]
+    stamps = 10.0 + 0.25 * np.arange(5)
+    for fmt in ("tum", "kitti", "euroc"):
+        path = tmp_path / f"traj.{fmt}"
+        sparseloop.write_trajectory(str(path), poses, stamps, format=fmt)
+        back = sparseloop.read_trajectory(str(path), fmt)
+        np.testing.assert_allclose(back["poses"], poses, atol=1e-9)
+        if fmt != "kitti":
+            np.testing.assert_allclose(back["timestamps"], stamps, atol=1e-6)
+    bad = tmp_path / "bad.txt"
+    bad.write_text("0 1 2 3 0 0 0 1\n1 1 2\n")
+    with pytest.raises(sparseloop.FileError, match=r"bad.txt:2: expected"):
+        sparseloop.read_trajectory(str(bad), "tum")
+    with pytest.raises(sparseloop.Error):
+        sparseloop.read_trajectory(str(tmp_path / "missing.txt"), "tum")
+    with pytest.raises(ValueError, match="one value per pose"):
+        sparseloop.write_trajectory(str(tmp_path / "x.txt"), poses, stamps[:3])
+
+
+def test_eval_dict_has_known_values(tmp_path):
+    """est = gt with +-0.1 m in z (alternating); without alignment every ATE error is 0.1 m."""
+    n = 20
+    gt = np.tile(np.eye(4), (n, 1, 1))
+    gt[:, 0, 3] = np.arange(n)  # a straight line along x, 1 m apart
+    gt[:, 1, 3] = np.where(np.arange(n) % 2 == 0, 0.0, 1.0)  # zigzag keeps the geometry 2-D
+    est = gt.copy()
+    est[:, 2, 3] = np.where(np.arange(n) % 2 == 0, 0.1, -0.1)  # +-0.1 m in z: mean zero
+    stamps = np.arange(n, dtype=float)
+    sparseloop.write_trajectory(str(tmp_path / "gt.txt"), gt, stamps)
+    sparseloop.write_trajectory(str(tmp_path / "est.txt"), est, stamps)
+    same = sparseloop.evaluate_trajectory(str(tmp_path / "gt.txt"), str(tmp_path / "gt.txt"))
+    assert same["ate_rmse_m"] == pytest.approx(0.0, abs=1e-9)
+    ev = sparseloop.evaluate_trajectory(str(tmp_path / "gt.txt"), str(tmp_path / "est.txt"),
+                                        alignment="none")
+    assert ev["ate_rmse_m"] == pytest.approx(0.1, abs=1e-9)  # every position is 0.1 m off
+    assert ev["ate"]["max"] == pytest.approx(0.1, abs=1e-9)
+    with pytest.raises(ValueError):
+        sparseloop.evaluate_trajectory(str(tmp_path / "gt.txt"), str(tmp_path / "gt.txt"),
+                                       alignment="bogus")
