@@ -28,6 +28,7 @@
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/map/map_database.h"
 #include "sparseloop/pipeline/config.h"
+#include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/pipeline/map_records.h"
 
 namespace sparseloop::cli {
@@ -54,7 +55,9 @@ int RunDetect(int argc, char** argv) {
   CLI::App app{"Detect loop closures in an image sequence (writes loops.csv and summary.json)"};
   std::string dataset_spec, poses, intrinsics_spec, config_path, out_dir, map_path;
   DetectorOverrides overrides;
-  app.add_option("--dataset", dataset_spec, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
+  app.add_option("--dataset", dataset_spec,
+                 "kitti:DIR | tum:DIR | euroc:DIR | images:DIR | "
+                 "rosbag:FILE.bag?image=TOPIC[&pose=TOPIC&camera_info=TOPIC&gt=TOPIC]")
       ->required();
   app.add_option("--poses", poses, "raw vSLAM poses (any trajectory format), one per frame");
   app.add_option("--intrinsics", intrinsics_spec, "fx,fy,cx,cy (overrides the dataset's)");
@@ -76,11 +79,18 @@ int RunDetect(int argc, char** argv) {
   dataset_options.intrinsics_name = "--intrinsics";
   if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsicsFlag(intrinsics_spec);
   if (!poses.empty()) dataset_options.poses = poses;
-  const Dataset dataset = OpenDataset(dataset_spec, dataset_options);
+  Dataset dataset = OpenDatasetSpec(dataset_spec, dataset_options);
   SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", dataset_spec);
-  // Raw poses come only from --poses: a dataset's own ground truth (KITTI poses.txt, a render's
-  // poses.txt) is never searched with as if a vSLAM had produced it (issue #21).
-  const bool have_poses = !poses.empty() && dataset.has_gt();
+  // Raw poses come only from --poses or a rosbag: pose topic: a dataset's own ground truth (KITTI
+  // poses.txt, a render's poses.txt) is never searched with as if a vSLAM had produced it (#21).
+  if (poses.empty() && !dataset.raw_poses.empty()) {
+    const Trajectory raw =
+        MatchRawPosesToFrames(dataset, dataset.raw_poses, pipeline_options.raw_association_max_dt,
+                              dataset.raw_poses_source);
+    for (size_t i = 0; i < dataset.frames.size(); ++i)
+      dataset.frames[i].gt_world_from_cam = raw.poses[i].world_from_cam;
+  }
+  const bool have_poses = (!poses.empty() || !dataset.raw_poses.empty()) && dataset.has_gt();
   if (!have_poses) {
     if (overrides.search.empty()) {
       options.search.strategy = SearchStrategy::kGlobal;
@@ -121,7 +131,7 @@ int RunDetect(int argc, char** argv) {
     KeyframeInput input;
     input.id = frame.index;
     input.timestamp = frame.timestamp;
-    input.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+    input.image = ReadFrameGray(dataset, frame);
     if (input.image.empty()) throw FileError(frame.image_path.string(), 0, "a readable image");
     input.intrinsics = dataset.intrinsics;
     if (have_poses && frame.gt_world_from_cam)

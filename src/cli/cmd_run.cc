@@ -74,11 +74,25 @@ int RunRun(int argc, char** argv) {
   options.map_path = map_path;
   options.Check();
 
+  // Raw poses: --poses, else the rosbag: dataset's pose topic (checked before anything is read).
+  if (flags.poses.empty() && !DatasetHasPoseTopic(flags.dataset)) {
+    throw std::invalid_argument(fmt::format(
+        "--poses is required for '{}' (raw vSLAM poses; a rosbag: dataset may name a pose=TOPIC "
+        "instead)",
+        flags.dataset));
+  }
   const Dataset dataset = OpenDatasetFromFlags(flags);
-  const Trajectory raw_file = ReadTrajectory(flags.poses);
-  RequireOrientations("--poses", flags.poses, raw_file);
+  Trajectory raw_file;
+  std::string raw_source = flags.poses;
+  if (!flags.poses.empty()) {
+    raw_file = ReadTrajectory(flags.poses);
+    RequireOrientations("--poses", flags.poses, raw_file);
+  } else {
+    raw_file = dataset.raw_poses;
+    raw_source = dataset.raw_poses_source;
+  }
   const Trajectory raw =
-      MatchRawPosesToFrames(dataset, raw_file, options.raw_association_max_dt, flags.poses);
+      MatchRawPosesToFrames(dataset, raw_file, options.raw_association_max_dt, raw_source);
   std::optional<Trajectory> gt;
   std::string gt_file;  // the file evaluated against
   if (!gt_path.empty()) {
@@ -141,7 +155,7 @@ int RunRun(int argc, char** argv) {
       DetectionSummaryJson(result.frame_results, result.loops.size(), result.bytes_per_keyframe);
   summary["command"] = "run";
   summary["dataset"] = flags.dataset;
-  summary["poses_file"] = flags.poses;
+  summary["poses_file"] = raw_source;  // --poses, or the rosbag: pose topic
   if (gt) summary["gt_file"] = gt_file;
   summary["skipped_frames"] = result.skipped_frames;
   summary["cross_session_loops"] = result.cross_session_loops.size();

@@ -17,6 +17,7 @@
 #include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/search/search_area.h"
 
 namespace sparseloop::cli {
@@ -114,10 +115,13 @@ void ApplyDetectorOverrides(const DetectorOverrides& o, LoopDetector::Options* o
 }
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
-  app.add_option("--dataset", f->dataset, "kitti:DIR | tum:DIR | euroc:DIR | images:DIR")
+  app.add_option("--dataset", f->dataset,
+                 "kitti:DIR | tum:DIR | euroc:DIR | images:DIR | "
+                 "rosbag:FILE.bag?image=TOPIC[&pose=TOPIC&camera_info=TOPIC&gt=TOPIC]")
       ->required();
-  app.add_option("--poses", f->poses, "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file)")
-      ->required();
+  app.add_option("--poses", f->poses,
+                 "Raw vSLAM poses (TUM, KITTI, EuRoC or positions file); required unless the "
+                 "rosbag: dataset names a pose=TOPIC");
   app.add_option("--intrinsics", f->intrinsics, "fx,fy,cx,cy (required for images:DIR)");
   AddDetectorOverrideFlags(app, &f->detector);
   app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
@@ -125,11 +129,19 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
   app.add_flag("--quiet", f->quiet, "No progress line");
 }
 
+bool DatasetHasPoseTopic(const std::string& dataset_spec) {
+  if (dataset_spec.rfind("rosbag:", 0) != 0) return false;
+  const size_t query = dataset_spec.find('?');
+  return query != std::string::npos && (dataset_spec.find("?pose=", query) != std::string::npos ||
+                                        dataset_spec.find("&pose=", query) != std::string::npos);
+}
+
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
   ApplyDetectorOverrides(flags.detector, &options.detector);
-  if (flags.poses.empty() && options.detector.search.strategy != SearchStrategy::kGlobal) {
+  if (flags.poses.empty() && !DatasetHasPoseTopic(flags.dataset) &&
+      options.detector.search.strategy != SearchStrategy::kGlobal) {
     // Without poses only the global search is defined.
     options.detector.search.strategy = SearchStrategy::kGlobal;
   }
@@ -141,7 +153,7 @@ Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
   DatasetOptions options;
   options.intrinsics_name = "--intrinsics";
   if (!flags.intrinsics.empty()) options.intrinsics = ParseIntrinsicsFlag(flags.intrinsics);
-  return OpenDataset(flags.dataset, options);
+  return OpenDatasetSpec(flags.dataset, options);
 }
 
 void PrepareRunFolder(const std::string& out, const std::string& command,

@@ -48,6 +48,8 @@ void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* overrides);
 // Applies the flags given to `options` and checks them; an invalid value names its flag.
 void ApplyDetectorOverrides(const DetectorOverrides& overrides, LoopDetector::Options* options);
 // Defaults, then --config, then the explicit flags (-K, --search).
+// True when --dataset is a rosbag: spec naming a pose=TOPIC (raw poses without --poses).
+bool DatasetHasPoseTopic(const std::string& dataset_spec);
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags);
 

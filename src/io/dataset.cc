@@ -52,6 +52,8 @@ void DatasetOptions::Check() const {
                "DatasetOptions::tum_max_dt must be positive, got {}", tum_max_dt);
   SL_CHECK_MSG(std::isfinite(euroc_max_dt) && euroc_max_dt > 0.0,
                "DatasetOptions::euroc_max_dt must be positive, got {}", euroc_max_dt);
+  SL_CHECK_MSG(std::isfinite(rosbag_max_dt) && rosbag_max_dt > 0.0,
+               "DatasetOptions::rosbag_max_dt must be positive, got {}", rosbag_max_dt);
   if (intrinsics) intrinsics->Check();
 }
 
@@ -213,6 +215,27 @@ CameraIntrinsics TumFreiburgIntrinsics(int freiburg) {
   return k;
 }
 
+size_t AttachGtByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt) {
+  size_t attached = 0;
+  for (auto& f : frames) {
+    auto it = std::lower_bound(gt.poses.begin(), gt.poses.end(), f.timestamp,
+                               [](const StampedPose& p, double t) { return p.timestamp < t; });
+    const StampedPose* best = nullptr;
+    if (it != gt.poses.end()) best = &*it;
+    if (it != gt.poses.begin()) {
+      const StampedPose& prev = *std::prev(it);
+      if (!best ||
+          std::abs(prev.timestamp - f.timestamp) <= std::abs(best->timestamp - f.timestamp))
+        best = &prev;
+    }
+    if (best && std::abs(best->timestamp - f.timestamp) <= max_dt) {
+      f.gt_world_from_cam = best->world_from_cam;
+      ++attached;
+    }
+  }
+  return attached;
+}
+
 namespace {
 
 std::string ToLower(std::string s) {
@@ -291,28 +314,6 @@ size_t AttachByIndex(std::vector<DatasetFrame>& frames, const Trajectory& gt) {
     if (it == by_frame.end()) continue;
     f.gt_world_from_cam = it->second->world_from_cam;
     ++attached;
-  }
-  return attached;
-}
-
-// Frame gets the pose nearest in time when |dt| <= max_dt (gt timestamps strictly increase).
-size_t AttachByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt) {
-  size_t attached = 0;
-  for (auto& f : frames) {
-    auto it = std::lower_bound(gt.poses.begin(), gt.poses.end(), f.timestamp,
-                               [](const StampedPose& p, double t) { return p.timestamp < t; });
-    const StampedPose* best = nullptr;
-    if (it != gt.poses.end()) best = &*it;
-    if (it != gt.poses.begin()) {
-      const StampedPose& prev = *std::prev(it);
-      if (!best ||
-          std::abs(prev.timestamp - f.timestamp) <= std::abs(best->timestamp - f.timestamp))
-        best = &prev;
-    }
-    if (best && std::abs(best->timestamp - f.timestamp) <= max_dt) {
-      f.gt_world_from_cam = best->world_from_cam;
-      ++attached;
-    }
   }
   return attached;
 }
@@ -505,7 +506,7 @@ Dataset OpenTum(const fs::path& root, const DatasetOptions& options) {
   size_t attached = 0;
   if (!d.gt_path.empty()) {
     const Trajectory gt = ReadGtTrajectory(d.gt_path, TrajectoryFormat::kAuto);
-    attached = gt.has_timestamps ? AttachByTime(d.frames, gt, options.tum_max_dt)
+    attached = gt.has_timestamps ? AttachGtByTime(d.frames, gt, options.tum_max_dt)
                                  : AttachByIndex(d.frames, gt);
   }
   LogGt(d, attached);
@@ -721,12 +722,12 @@ Dataset OpenEuroc(const fs::path& root, const DatasetOptions& options) {
   if (!options.poses.empty()) {
     d.gt_path = options.poses;
     const Trajectory gt = ReadGtTrajectory(d.gt_path, TrajectoryFormat::kAuto);
-    attached = gt.has_timestamps ? AttachByTime(d.frames, gt, options.euroc_max_dt)
+    attached = gt.has_timestamps ? AttachGtByTime(d.frames, gt, options.euroc_max_dt)
                                  : AttachByIndex(d.frames, gt);
   } else if (fs::is_regular_file(own_gt, ec)) {
     d.gt_path = own_gt;
     const Trajectory gt = ReadGtTrajectory(own_gt, TrajectoryFormat::kEuroc);
-    attached = AttachByTime(d.frames, gt, options.euroc_max_dt);
+    attached = AttachGtByTime(d.frames, gt, options.euroc_max_dt);
     if (options.euroc_gt_in_camera_frame) {
       if (!body_from_cam) {
         throw FileError(yaml.string(), 0, "T_BS (needed to express the body GT in the camera)",

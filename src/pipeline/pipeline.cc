@@ -11,6 +11,7 @@
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/map/map_database.h"
+#include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/pipeline/map_records.h"
 #include "sparseloop/posegraph/interpolation.h"
 
@@ -182,7 +183,7 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
     KeyframeInput input;
     input.id = frame.index;
     input.timestamp = frame.timestamp;
-    input.image = cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+    input.image = ReadFrameGray(dataset, frame);
     if (input.image.empty()) {
       if (!options.skip_unreadable_frames) {
         throw FileError(frame.image_path.string(), 0, "a readable image");

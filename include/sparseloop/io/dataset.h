@@ -6,6 +6,8 @@
 //   "euroc:DIR"   DIR/mav0/cam0/{data.csv,sensor.yaml,data/*.png}, optional
 //                 DIR/mav0/state_groundtruth_estimate0/data.csv
 //   "images:DIR"  sorted *.png/jpg/jpeg/pgm/bmp; intrinsics from options, poses optional
+//   "rosbag:FILE.bag?image=TOPIC&..."  a ROS 1 bag (sparseloop/bag/rosbag_dataset.h; opened by
+//                 OpenRosbagDataset, or OpenDatasetSpec in pipeline/dataset_source.h, not here)
 // A bad spec or a missing required option throws std::invalid_argument; a missing or malformed
 // file throws FileError.
 //
@@ -24,6 +26,7 @@
 // `RunPipeline` skips it (skip_unreadable_frames).
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -41,8 +44,24 @@ struct DatasetFrame {
   std::optional<Rigid3d> gt_world_from_cam;  // ground-truth pose when known
 };
 
+// An 8-bit gray image, row-major without padding (io has no OpenCV).
+struct GrayImage {
+  int width = 0;                // pixels
+  int height = 0;               // pixels
+  std::vector<uint8_t> pixels;  // width * height bytes
+};
+
+// Images that are not files (the messages of a bag): the loader that opened the dataset decodes
+// them. ReadGray throws FileError naming the container and the message when one cannot be read.
+// Safe to call from one thread at a time per dataset.
+class DatasetImageReader {
+ public:
+  virtual ~DatasetImageReader() = default;
+  virtual GrayImage ReadGray(const DatasetFrame& frame) const = 0;
+};
+
 struct Dataset {
-  std::string kind;  // "kitti", "tum", "euroc" or "images"
+  std::string kind;  // "kitti", "tum", "euroc", "images" or "rosbag"
   std::filesystem::path root;
   CameraIntrinsics intrinsics;
   // Where `intrinsics` came from, for messages: DatasetOptions::intrinsics_name, a calibration file
@@ -50,6 +69,13 @@ struct Dataset {
   std::string intrinsics_source;
   std::vector<DatasetFrame> frames;
   std::filesystem::path gt_path;  // the file the ground truth came from (empty when none)
+  // Null: every frame's image_path is an image file. Set: images come from this reader
+  // (image_path then only names the frame for messages and output files).
+  std::shared_ptr<const DatasetImageReader> image_reader;
+  // Raw vSLAM poses the dataset itself carries (a rosbag: pose topic), timestamped, in time
+  // order; empty when none. `raw_poses_source` names them for messages ("FILE.bag topic /pose").
+  Trajectory raw_poses;
+  std::string raw_poses_source;
 
   // True when at least one frame has a ground-truth pose.
   bool has_gt() const;
@@ -71,12 +97,17 @@ struct DatasetOptions {
   // EuRoC GT is the body (IMU) pose. True: convert to the camera with T_BS from sensor.yaml
   // (world_from_cam = world_from_body * body_from_cam). False: keep the body pose.
   bool euroc_gt_in_camera_frame = true;
+  double rosbag_max_dt = 0.01;  // seconds, max |t_image - t_pose| for rosbag: ground truth
 
   void Check() const;
 };
 
 // spec = "<kind>:<DIR>".
 Dataset OpenDataset(const std::string& spec, const DatasetOptions& options = {});
+
+// Frame gets the GT pose nearest in time when |dt| <= max_dt (gt timestamps increasing); returns
+// how many frames got one. The one timestamp association of the dataset loaders.
+size_t AttachGtByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt);
 
 // Width and height of a PNG image from its IHDR chunk (no decoding). FileError when the file is
 // missing or is not a PNG.

@@ -1,0 +1,366 @@
+#include "sparseloop/bag/rosbag_dataset.h"
+
+#include <algorithm>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "bag/bag_messages.h"
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/error.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/quaternion.h"
+#include "sparseloop/io/trajectory_io.h"
+
+namespace sparseloop {
+
+namespace fs = std::filesystem;
+using bag_internal::BagReader;
+using bag_internal::ImageData;
+using bag_internal::ImageHeader;
+
+namespace {
+
+struct BagSpec {
+  std::string file;
+  std::string image, camera_info, pose, gt;
+};
+
+BagSpec ParseSpec(const std::string& spec) {
+  const std::string prefix = "rosbag:";
+  SL_CHECK_MSG(spec.rfind(prefix, 0) == 0, "a rosbag spec starts with 'rosbag:', got '{}'", spec);
+  const std::string rest = spec.substr(prefix.size());
+  const size_t q = rest.find('?');
+  BagSpec out;
+  out.file = rest.substr(0, q);
+  SL_CHECK_MSG(!out.file.empty(), "'{}': expected rosbag:FILE.bag?image=TOPIC[&pose=TOPIC...]",
+               spec);
+  if (q != std::string::npos) {
+    std::string query = rest.substr(q + 1);
+    size_t start = 0;
+    while (start <= query.size()) {
+      const size_t amp = std::min(query.find('&', start), query.size());
+      const std::string item = query.substr(start, amp - start);
+      start = amp + 1;
+      if (item.empty()) continue;
+      const size_t eq = item.find('=');
+      const std::string key = item.substr(0, eq);
+      const std::string value = eq == std::string::npos ? "" : item.substr(eq + 1);
+      std::string* field = key == "image"         ? &out.image
+                           : key == "camera_info" ? &out.camera_info
+                           : key == "pose"        ? &out.pose
+                           : key == "gt"          ? &out.gt
+                                                  : nullptr;
+      SL_CHECK_MSG(field != nullptr, "'{}': unknown key '{}' (valid: image, camera_info, pose, gt)",
+                   spec, key);
+      SL_CHECK_MSG(!value.empty() && value.front() == '/',
+                   "'{}': {}= needs a topic name starting with '/', got '{}'", spec, key, value);
+      *field = value;
+    }
+  }
+  SL_CHECK_MSG(!out.image.empty(), "'{}': no image topic (rosbag:FILE.bag?image=/cam0/image_raw)",
+               spec);
+  return out;
+}
+
+// The topic must be in the bag (with the listed types); the message lists what the bag has.
+const bag_internal::TopicInfo& RequireTopic(const std::vector<bag_internal::TopicInfo>& topics,
+                                            const std::string& file, const std::string& topic,
+                                            const std::string& what) {
+  for (const auto& t : topics) {
+    if (t.topic == topic) return t;
+  }
+  std::string have;
+  for (const auto& t : topics)
+    have += fmt::format("{}{} ({})", have.empty() ? "" : ", ", t.topic, t.type);
+  throw FileError(file, 0, fmt::format("topic {} ({})", topic, what),
+                  fmt::format("no such topic; the bag has {}", have.empty() ? "none" : have));
+}
+
+Trajectory PosesToTrajectory(const std::vector<bag_internal::PoseMessage>& messages,
+                             const std::string& file, const std::string& topic) {
+  Trajectory traj;
+  traj.has_rotation = true;
+  traj.has_timestamps = true;
+  for (const auto& m : messages) {
+    const Eigen::Quaterniond q = QuaternionFromXyzw(m.orientation_xyzw[0], m.orientation_xyzw[1],
+                                                    m.orientation_xyzw[2], m.orientation_xyzw[3]);
+    if (!(std::abs(q.norm() - 1.0) < 1e-3)) {
+      throw FileError(file, 0,
+                      fmt::format("a unit quaternion in message {} of topic {}", m.index, topic),
+                      fmt::format("norm {}", q.norm()));
+    }
+    traj.poses.push_back(StampedPose{
+        m.stamp, m.index,
+        Rigid3d(q.normalized(), Eigen::Vector3d(m.position[0], m.position[1], m.position[2]))});
+  }
+  std::stable_sort(
+      traj.poses.begin(), traj.poses.end(),
+      [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  return traj;
+}
+
+CameraIntrinsics IntrinsicsFromCameraInfo(const bag_internal::CameraInfoMessage& c,
+                                          const std::string& file, const std::string& topic) {
+  CameraIntrinsics k;
+  k.fx = c.k[0];
+  k.cx = c.k[2];
+  k.fy = c.k[4];
+  k.cy = c.k[5];
+  k.width = c.width;
+  k.height = c.height;
+  const bool any = std::any_of(c.d.begin(), c.d.end(), [](double v) { return v != 0.0; });
+  if (any && (c.distortion_model == "plumb_bob" || c.distortion_model == "radtan")) {
+    k.distortion_model = DistortionModel::kRadialTangential;
+    k.distortion = c.d;
+  } else if (any && c.distortion_model == "equidistant") {
+    k.distortion_model = DistortionModel::kEquidistant;
+    k.distortion = c.d;
+  } else if (any) {
+    throw FileError(file, 0,
+                    fmt::format("distortion_model plumb_bob or equidistant in topic {}", topic),
+                    fmt::format("'{}'", c.distortion_model));
+  }
+  try {
+    k.Check();
+  } catch (const std::invalid_argument& e) {
+    throw FileError(file, 0, fmt::format("valid intrinsics in topic {} (message 0)", topic),
+                    e.what());
+  }
+  return k;
+}
+
+// Decodes the frames' messages on demand; keeps the bag open.
+class BagImageReader : public DatasetImageReader {
+ public:
+  BagImageReader(std::shared_ptr<BagReader> bag, std::string topic, std::vector<int64_t> message)
+      : bag_(std::move(bag)), topic_(std::move(topic)), message_(std::move(message)) {}
+
+  GrayImage ReadGray(const DatasetFrame& frame) const override {
+    SL_CHECK_MSG(frame.index >= 0 && static_cast<size_t>(frame.index) < message_.size(),
+                 "frame {} is not a frame of {}", frame.index, bag_->path());
+    const int64_t index = message_[frame.index];
+    ImageData m;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      m = bag_->ReadImage(topic_, index);
+    }
+    const auto fail = [&](const std::string& expected, const std::string& got) {
+      return FileError(bag_->path(), 0,
+                       fmt::format("{} in message {} of topic {}", expected, index, topic_), got);
+    };
+    cv::Mat gray;
+    if (m.header.compressed) {
+      gray = cv::imdecode(cv::Mat(1, static_cast<int>(m.data.size()), CV_8UC1, m.data.data()),
+                          cv::IMREAD_GRAYSCALE);
+      if (gray.empty()) {
+        throw fail("an image OpenCV decodes",
+                   fmt::format("'{}' data of {} bytes that do not decode", m.header.encoding,
+                               m.data.size()));
+      }
+    } else {
+      const std::string& e = m.header.encoding;
+      const int channels = e == "mono8" || e == "8UC1"                   ? 1
+                           : e == "mono16" || e == "16UC1"               ? -2
+                           : e == "bgr8" || e == "rgb8" || e == "8UC3"   ? 3
+                           : e == "bgra8" || e == "rgba8" || e == "8UC4" ? 4
+                                                                         : 0;
+      if (channels == 0) {
+        throw fail("encoding mono8, 8UC1, mono16, 16UC1, bgr8, rgb8, bgra8 or rgba8",
+                   fmt::format("'{}'", e));
+      }
+      const int w = m.header.width, h = m.header.height;
+      const int64_t row = int64_t{w} * std::abs(channels);
+      if (w <= 0 || h <= 0 || m.step < row ||
+          int64_t{m.step} * h > static_cast<int64_t>(m.data.size())) {
+        throw fail(fmt::format("{}x{} {} pixels in rows of step {} (>= {})", w, h, e, m.step, row),
+                   fmt::format("{} bytes of data", m.data.size()));
+      }
+      if (channels == -2) {
+        cv::Mat wide(h, w, CV_16UC1, m.data.data(), m.step);
+        cv::Mat fixed = wide;
+        if (m.big_endian) {
+          fixed = wide.clone();
+          for (int r = 0; r < h; ++r) {
+            auto* p = fixed.ptr<uint16_t>(r);
+            for (int c = 0; c < w; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
+          }
+        }
+        fixed.convertTo(gray, CV_8UC1, 1.0 / 256.0);
+      } else {
+        cv::Mat view(h, w, CV_8UC(channels), m.data.data(), m.step);
+        if (channels == 1) {
+          gray = view.clone();
+        } else {
+          const bool rgb = e.rfind("rgb", 0) == 0;
+          cv::cvtColor(view, gray,
+                       channels == 3 ? (rgb ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY)
+                                     : (rgb ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY));
+        }
+      }
+    }
+    if (size_.width == 0) {
+      size_ = {gray.cols, gray.rows};
+    } else if (gray.cols != size_.width || gray.rows != size_.height) {
+      throw fail(fmt::format("an image of {}x{} like the earlier ones", size_.width, size_.height),
+                 fmt::format("{}x{}", gray.cols, gray.rows));
+    }
+    GrayImage out;
+    out.width = gray.cols;
+    out.height = gray.rows;
+    out.pixels.assign(gray.datastart, gray.dataend);
+    return out;
+  }
+
+  void ExpectSize(int width, int height) { size_ = {width, height}; }
+
+ private:
+  std::shared_ptr<BagReader> bag_;
+  std::string topic_;
+  std::vector<int64_t> message_;  // bag message index of each frame
+  mutable std::mutex mutex_;
+  mutable ImageSize size_;
+};
+
+}  // namespace
+
+Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options) {
+  options.Check();
+  const BagSpec s = ParseSpec(spec);
+  std::error_code ec;
+  if (!fs::is_regular_file(s.file, ec)) throw FileError(s.file, 0, "a ROS bag file", "missing");
+  auto bag = std::make_shared<BagReader>(s.file);
+  const auto topics = bag->Topics();
+
+  Dataset d;
+  d.kind = "rosbag";
+  d.root = s.file;
+  RequireTopic(topics, s.file, s.image, "sensor_msgs/Image or sensor_msgs/CompressedImage");
+  std::vector<ImageHeader> headers = bag->ImageHeaders(s.image);
+  if (headers.empty()) {
+    throw FileError(s.file, 0, fmt::format("at least one image on topic {}", s.image), "none");
+  }
+  if (!std::is_sorted(
+          headers.begin(), headers.end(),
+          [](const ImageHeader& a, const ImageHeader& b) { return a.stamp < b.stamp; })) {
+    Logger().warn("{}: images on {} are not in stamp order; frames follow the stamps", s.file,
+                  s.image);
+    std::stable_sort(headers.begin(), headers.end(),
+                     [](const ImageHeader& a, const ImageHeader& b) { return a.stamp < b.stamp; });
+  }
+  std::vector<int64_t> message_of_frame;
+  std::optional<ImageSize> size;
+  for (size_t i = 0; i < headers.size(); ++i) {
+    const ImageHeader& h = headers[i];
+    if (i > 0 && h.stamp == headers[i - 1].stamp) {
+      throw FileError(s.file, 0,
+                      fmt::format("distinct image stamps on topic {} (messages {} and {})", s.image,
+                                  headers[i - 1].index, h.index),
+                      fmt::format("both {:.9f} s", h.stamp));
+    }
+    if (!h.compressed) {
+      if (h.width < kMinImageSide || h.height < kMinImageSide ||
+          int64_t{h.width} * h.height > kMaxImagePixels) {
+        throw FileError(s.file, 0,
+                        fmt::format("an image of {0}x{0} to {1} pixels in message {2} of topic {3}",
+                                    kMinImageSide, kMaxImagePixels, h.index, s.image),
+                        fmt::format("{}x{}", h.width, h.height));
+      }
+      if (!size) size = ImageSize{h.width, h.height};
+      if (h.width != size->width || h.height != size->height) {
+        throw FileError(s.file, 0,
+                        fmt::format("every image {}x{} in topic {} (message {})", size->width,
+                                    size->height, s.image, h.index),
+                        fmt::format("{}x{}", h.width, h.height));
+      }
+    }
+    DatasetFrame f;
+    f.index = static_cast<int64_t>(i);
+    f.timestamp = h.stamp;
+    // Names the frame in messages and output files (frames.csv): FILE.bag/<topic>/<message>.
+    f.image_path = fs::path(s.file) / s.image.substr(1) / fmt::format("{:06d}", h.index);
+    d.frames.push_back(std::move(f));
+    message_of_frame.push_back(h.index);
+  }
+
+  // Intrinsics: --intrinsics, else camera_info (explicit or the image topic's sibling).
+  std::string info_topic = s.camera_info;
+  if (info_topic.empty()) {
+    const std::string sibling = s.image.substr(0, s.image.rfind('/')) + "/camera_info";
+    for (const auto& t : topics) {
+      if (t.topic == sibling) info_topic = sibling;
+    }
+  }
+  if (options.intrinsics) {
+    d.intrinsics = *options.intrinsics;
+    d.intrinsics_source = options.intrinsics_name;
+  } else if (!info_topic.empty()) {
+    RequireTopic(topics, s.file, info_topic, "sensor_msgs/CameraInfo");
+    const auto info = bag->FirstCameraInfo(info_topic);
+    if (!info) throw FileError(s.file, 0, fmt::format("a message on topic {}", info_topic), "none");
+    d.intrinsics = IntrinsicsFromCameraInfo(*info, s.file, info_topic);
+    d.intrinsics_source = fmt::format("{} topic {}", s.file, info_topic);
+  } else {
+    throw std::invalid_argument(fmt::format(
+        "{} needs intrinsics: a camera_info=TOPIC in the spec, a {} topic in the bag, or {}", spec,
+        s.image.substr(0, s.image.rfind('/')) + "/camera_info", options.intrinsics_name));
+  }
+  if (size) {
+    if (d.intrinsics.width == 0 || d.intrinsics.height == 0) {
+      d.intrinsics.width = size->width;
+      d.intrinsics.height = size->height;
+    } else if (d.intrinsics.width != size->width || d.intrinsics.height != size->height) {
+      throw FileError(
+          s.file, 0,
+          fmt::format("images of {}x{} on topic {} (the size of {})", d.intrinsics.width,
+                      d.intrinsics.height, s.image, d.intrinsics_source),
+          fmt::format("{}x{}", size->width, size->height));
+    }
+  }
+  const CameraIntrinsics& k = d.intrinsics;
+  if (k.width > 0 && k.height > 0 && !(k.cx > 0 && k.cx < k.width && k.cy > 0 && k.cy < k.height)) {
+    throw std::invalid_argument(fmt::format("{}: principal point ({}, {}) outside the {}x{} image",
+                                            d.intrinsics_source, k.cx, k.cy, k.width, k.height));
+  }
+  auto reader = std::make_shared<BagImageReader>(bag, s.image, std::move(message_of_frame));
+  if (size) reader->ExpectSize(size->width, size->height);
+  d.image_reader = std::move(reader);
+
+  if (!s.pose.empty()) {
+    RequireTopic(topics, s.file, s.pose, "raw vSLAM poses");
+    d.raw_poses = PosesToTrajectory(bag->Poses(s.pose), s.file, s.pose);
+    if (d.raw_poses.empty()) {
+      throw FileError(s.file, 0, fmt::format("at least one pose on topic {}", s.pose), "none");
+    }
+    d.raw_poses_source = fmt::format("{} topic {}", s.file, s.pose);
+  }
+  size_t attached = 0;
+  if (!options.poses.empty()) {
+    d.gt_path = options.poses;
+    Trajectory gt = ReadTrajectory(options.poses);
+    if (!gt.has_rotation) {
+      throw FileError(options.poses.string(), 0, "a ground-truth trajectory with orientations",
+                      "a positions-only file");
+    }
+    if (!gt.has_timestamps) {
+      throw FileError(options.poses.string(), 0,
+                      "a timestamped ground truth (TUM or EuRoC) for a rosbag: dataset",
+                      "a file without timestamps");
+    }
+    attached = AttachGtByTime(d.frames, gt, options.rosbag_max_dt);
+  } else if (!s.gt.empty()) {
+    RequireTopic(topics, s.file, s.gt, "ground-truth poses");
+    d.gt_path = s.file;
+    attached = AttachGtByTime(d.frames, PosesToTrajectory(bag->Poses(s.gt), s.file, s.gt),
+                              options.rosbag_max_dt);
+  }
+  Logger().info("rosbag dataset {}: {} frames from {}, {} raw poses, ground truth for {}", s.file,
+                d.frames.size(), s.image, d.raw_poses.size(), attached);
+  return d;
+}
+
+}  // namespace sparseloop

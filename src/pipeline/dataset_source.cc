@@ -1,0 +1,42 @@
+#include "sparseloop/pipeline/dataset_source.h"
+
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#ifdef SPARSELOOP_HAVE_ROSBAG
+#include "sparseloop/bag/rosbag_dataset.h"
+#endif
+
+namespace sparseloop {
+
+bool HaveRosbagDatasets() {
+#ifdef SPARSELOOP_HAVE_ROSBAG
+  return true;
+#else
+  return false;
+#endif
+}
+
+Dataset OpenDatasetSpec(const std::string& spec, const DatasetOptions& options) {
+  if (spec.rfind("rosbag:", 0) == 0) {
+#ifdef SPARSELOOP_HAVE_ROSBAG
+    return OpenRosbagDataset(spec, options);
+#else
+    throw std::invalid_argument(fmt::format(
+        "'{}': this sparseloop was built without ROS (SPARSELOOP_WITH_ROS; scripts/setup installs "
+        "librosbag-storage-dev), so it cannot read rosbag: datasets",
+        spec));
+#endif
+  }
+  return OpenDataset(spec, options);
+}
+
+cv::Mat ReadFrameGray(const Dataset& dataset, const DatasetFrame& frame) {
+  if (!dataset.image_reader) return cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+  GrayImage image = dataset.image_reader->ReadGray(frame);
+  return cv::Mat(image.height, image.width, CV_8UC1, image.pixels.data()).clone();
+}
+
+}  // namespace sparseloop
