@@ -195,13 +195,7 @@ LoopClosing::Options ClosingOptions(const py::object& config, bool solve_while_r
     else
       ApplyConfig(FromPython(config), "config", &p);
   }
-  LoopClosing::Options o;
-  o.detector = p.detector;
-  o.loop_edge = p;
-  o.optimizer.solve = p.optimizer;
-  o.optimizer.odometry = p.odometry;
-  o.optimizer.vertex_type = p.vertex_type;
-  o.optimizer.solve_while_running = solve_while_running;
+  LoopClosing::Options o = LoopClosingOptionsFor(p, solve_while_running);
   o.optimize = optimize;
   o.Check();
   return o;

@@ -151,6 +151,18 @@ double LocalStep(const Trajectory& raw, size_t i) {
 
 }  // namespace
 
+LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
+                                           bool solve_while_running) {
+  LoopClosing::Options o;
+  o.detector = options.detector;
+  o.loop_edge = options;
+  o.optimizer.solve = options.optimizer;
+  o.optimizer.odometry = options.odometry;
+  o.optimizer.vertex_type = options.vertex_type;
+  o.optimizer.solve_while_running = solve_while_running;
+  return o;
+}
+
 PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
                            const PipelineOptions& options,
                            const PipelineProgressCallback& progress) {

@@ -56,18 +56,6 @@ KeyframeInput FrameInput(const Sequence& s, size_t i) {
   return in;
 }
 
-// The LoopClosing options equal to `run`'s PipelineOptions.
-LoopClosing::Options OptionsOf(const PipelineOptions& p, bool solve_while_running) {
-  LoopClosing::Options o;
-  o.detector = p.detector;
-  o.loop_edge = p;
-  o.optimizer.solve = p.optimizer;
-  o.optimizer.odometry = p.odometry;
-  o.optimizer.vertex_type = p.vertex_type;
-  o.optimizer.solve_while_running = solve_while_running;
-  return o;
-}
-
 std::vector<std::pair<int64_t, int64_t>> LoopIds(const std::vector<LoopResult>& loops) {
   std::vector<std::pair<int64_t, int64_t>> ids;
   for (const LoopResult& l : loops) ids.emplace_back(l.query_id, l.match_id);
@@ -123,7 +111,7 @@ TEST(LoopClosing, SameLoopsAndTrajectoryAsRunPipeline) {
   const PipelineResult offline = RunPipeline(s.dataset, s.raw, popt);
   ASSERT_GE(offline.loops.size(), 10u);  // the sequence closes loops on its second lap
 
-  LoopClosing closing(OptionsOf(popt, /*solve_while_running=*/false));
+  LoopClosing closing(LoopClosingOptionsFor(popt, /*solve_while_running=*/false));
   std::vector<LoopResult> loops;
   for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
     const LoopEvent e = closing.AddKeyframe(FrameInput(s, i));
@@ -175,12 +163,14 @@ TEST(LoopClosing, BackgroundSolvesPolledFromAnotherThread) {
   std::atomic<uint64_t> callbacks{0};
   std::atomic<bool> callback_order_ok{true};
   LoopClosing* self = nullptr;
-  LoopClosing closing(OptionsOf(popt, /*solve_while_running=*/true), [&](const PoseCorrection& c) {
-    // Background thread: revisions come in order, and the poll already shows this one.
-    if (c.revision != callbacks.load() + 1) callback_order_ok = false;
-    if (self->LatestSolve()->revision != c.revision) callback_order_ok = false;
-    callbacks = c.revision;
-  });
+  LoopClosing closing(LoopClosingOptionsFor(popt, /*solve_while_running=*/true),
+                      [&](const PoseCorrection& c) {
+                        // Background thread: revisions come in order, and the poll already shows
+                        // this one.
+                        if (c.revision != callbacks.load() + 1) callback_order_ok = false;
+                        if (self->LatestSolve()->revision != c.revision) callback_order_ok = false;
+                        callbacks = c.revision;
+                      });
   self = &closing;
 
   std::atomic<bool> done{false};
@@ -230,7 +220,7 @@ TEST(LoopClosing, BackgroundSolvesPolledFromAnotherThread) {
 // After a solve, a keyframe added later is the last correction composed onto its raw pose.
 TEST(LoopClosing, KeyframesAfterTheLastSolveFollowItsCorrection) {
   const Sequence s = LoadSequence();
-  LoopClosing closing(OptionsOf(PipelineOptions{}, /*solve_while_running=*/true));
+  LoopClosing closing(LoopClosingOptionsFor(PipelineOptions{}, /*solve_while_running=*/true));
   size_t i = 0;
   for (; i < s.dataset.frames.size(); ++i) {
     if (closing.AddKeyframe(FrameInput(s, i)).loop_in_graph) break;

@@ -14,6 +14,7 @@
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/posegraph/pose_graph.h"
+#include "sparseloop/runtime/loop_closing.h"
 #include "sparseloop/runtime/loop_edge.h"
 
 namespace sparseloop {
@@ -63,6 +64,13 @@ struct PipelineResult {
   double bytes_per_keyframe = 0.0;  // mean KeyframeRecord::Bytes() of the stored keyframes
   double detect_seconds = 0.0;      // wall time of the detection loop (image decode included)
 };
+
+// The online LoopClosing configured as `run` is (same detector, loop edges, odometry weighting,
+// vertex type and solve options): the one mapping from the config keys to the online API, used by
+// the Python module and the tests that compare LoopClosing with RunPipeline.
+// solve_while_running false = one solve in Finish(), what `run` computes.
+LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
+                                           bool solve_while_running);
 
 // The raw trajectory matched to the dataset's frames (by timestamp or index, see options).
 // Throws FileError when a frame has no raw pose (e.g. a pose file shorter than the image list).
