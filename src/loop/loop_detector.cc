@@ -704,6 +704,20 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
              : none;
 }
 
+bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query_index,
+                                       size_t match_index, int inliers,
+                                       const VerifyOptions& verify) const {
+  const size_t span = query_index - match_index;
+  for (const size_t k : {match_index + span / 2, match_index + 3 * span / 4}) {
+    if (k <= match_index || k >= query_index) continue;
+    const std::vector<DescriptorMatch> matches = MatchQuery(query, records_[k]);
+    if (static_cast<int>(matches.size()) < inliers) continue;  // cannot reach `inliers`
+    const VerificationResult v = VerifyPair(query, records_[k], matches, verify);
+    if (v.success && v.inliers >= inliers) return true;
+  }
+  return false;
+}
+
 size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
   const double floor = options_.overlap_match_factor * options_.EffectiveMinMatches();
   double threshold = floor;
@@ -907,6 +921,10 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
         const bool is_weak = trial.inliers < verify_.min_inliers && map_inliers == 0;
         if (is_weak && !Agrees(query_index, match_index))
           trial_status = LoopStatus::kRejectedByTemporal;
+      }
+      if (trial_status == LoopStatus::kDetected && options_.continuity_check && !query.has_pose &&
+          ContinuesRecentView(query, query_index, match_index, trial.inliers, verify)) {
+        trial_status = LoopStatus::kRejectedByTemporal;
       }
       if (trial_status == LoopStatus::kDetected && options_.temporal_check) {
         const bool confirmed =

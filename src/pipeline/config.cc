@@ -310,6 +310,8 @@ void AddDetectorKeys(KeyList& k) {
         "no pose: overlap needs this x the match floor (>= 0)");
   k.Add(d + "overlap_relative", SL_FIELD(detector.overlap_relative), "fraction",
         "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
+  k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
+        "no pose: reject a loop when a keyframe between it and the query verifies as well");
   k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
         "reject loops whose rotation disagrees with the pose prior");
   k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",
