@@ -2,6 +2,7 @@
 // compile as C++20. Reads with rosbag_storage; every message is deserialised inside a try block
 // so that a malformed or cut message names the bag, the topic and the message index.
 #include "bag/bag_messages.h"
+#include "bag/ros_convert.h"
 
 #include <algorithm>
 #include <exception>
@@ -119,31 +120,19 @@ void ForEach(rosbag::Bag& bag, const std::string& path, const std::string& topic
   }
 }
 
-ImageHeader HeaderOf(const rosbag::MessageInstance& m, int64_t index) {
-  ImageHeader h;
-  h.index = index;
-  if (m.getDataType() == kImage) {
-    const auto msg = m.instantiate<sensor_msgs::Image>();
-    h.stamp = msg->header.stamp.toSec();
-    h.encoding = msg->encoding;
-    h.width = static_cast<int>(msg->width);
-    h.height = static_cast<int>(msg->height);
-  } else {
-    const auto msg = m.instantiate<sensor_msgs::CompressedImage>();
-    h.stamp = msg->header.stamp.toSec();
-    h.compressed = true;
-    h.encoding = msg->format;
-  }
-  return h;
+ImageHeader HeaderOfMessage(const rosbag::MessageInstance& m, int64_t index) {
+  if (m.getDataType() == kImage) return HeaderOf(*m.instantiate<sensor_msgs::Image>(), index);
+  return HeaderOf(*m.instantiate<sensor_msgs::CompressedImage>(), index);
 }
 
 }  // namespace
 
 std::vector<ImageHeader> BagReader::ImageHeaders(const std::string& topic) const {
   std::vector<ImageHeader> out;
-  ForEach(
-      impl_->bag, path_, topic, {kImage, kCompressedImage},
-      [&](const rosbag::MessageInstance& m, int64_t index) { out.push_back(HeaderOf(m, index)); });
+  ForEach(impl_->bag, path_, topic, {kImage, kCompressedImage},
+          [&](const rosbag::MessageInstance& m, int64_t index) {
+            out.push_back(HeaderOfMessage(m, index));
+          });
   return out;
 }
 
@@ -164,16 +153,9 @@ ImageData BagReader::ReadImage(const std::string& topic, int64_t index) const {
       throw FileError(path_, 0, fmt::format("message {} on topic {}", index, topic), "fewer");
     }
     const rosbag::MessageInstance& m = *s.cursor;
-    ImageData out;
-    out.header = HeaderOf(m, index);
-    if (!out.header.compressed) {
-      const auto msg = m.instantiate<sensor_msgs::Image>();
-      out.step = static_cast<int>(msg->step);
-      out.big_endian = msg->is_bigendian != 0;
-      out.data = msg->data;
-    } else {
-      out.data = m.instantiate<sensor_msgs::CompressedImage>()->data;
-    }
+    ImageData out = m.getDataType() == kImage
+                        ? ToImageData(*m.instantiate<sensor_msgs::Image>(), index)
+                        : ToImageData(*m.instantiate<sensor_msgs::CompressedImage>(), index);
     return out;
   } catch (const FileError&) {
     s.cursor_view.reset();
@@ -188,34 +170,29 @@ ImageData BagReader::ReadImage(const std::string& topic, int64_t index) const {
 
 std::vector<PoseMessage> BagReader::Poses(const std::string& topic) const {
   std::vector<PoseMessage> out;
-  auto set = [](PoseMessage& p, const ros::Time& stamp, const auto& position,
-                const auto& orientation) {
-    p.stamp = stamp.toSec();
-    p.position[0] = position.x, p.position[1] = position.y, p.position[2] = position.z;
-    p.orientation_xyzw[0] = orientation.x, p.orientation_xyzw[1] = orientation.y;
-    p.orientation_xyzw[2] = orientation.z, p.orientation_xyzw[3] = orientation.w;
-  };
-  ForEach(impl_->bag, path_, topic,
-          {kPoseStamped, kOdometry, kPoseWithCovariance, kTransformStamped},
-          [&](const rosbag::MessageInstance& m, int64_t index) {
-            PoseMessage p;
-            p.index = index;
-            const std::string& type = m.getDataType();
-            if (type == kPoseStamped) {
-              const auto msg = m.instantiate<geometry_msgs::PoseStamped>();
-              set(p, msg->header.stamp, msg->pose.position, msg->pose.orientation);
-            } else if (type == kOdometry) {
-              const auto msg = m.instantiate<nav_msgs::Odometry>();
-              set(p, msg->header.stamp, msg->pose.pose.position, msg->pose.pose.orientation);
-            } else if (type == kPoseWithCovariance) {
-              const auto msg = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>();
-              set(p, msg->header.stamp, msg->pose.pose.position, msg->pose.pose.orientation);
-            } else {
-              const auto msg = m.instantiate<geometry_msgs::TransformStamped>();
-              set(p, msg->header.stamp, msg->transform.translation, msg->transform.rotation);
-            }
-            out.push_back(p);
-          });
+  ForEach(
+      impl_->bag, path_, topic, {kPoseStamped, kOdometry, kPoseWithCovariance, kTransformStamped},
+      [&](const rosbag::MessageInstance& m, int64_t index) {
+        PoseMessage p;
+        const std::string& type = m.getDataType();
+        if (type == kPoseStamped) {
+          const auto msg = m.instantiate<geometry_msgs::PoseStamped>();
+          p = ToPoseMessage(index, msg->header.stamp, msg->pose.position, msg->pose.orientation);
+        } else if (type == kOdometry) {
+          const auto msg = m.instantiate<nav_msgs::Odometry>();
+          p = ToPoseMessage(index, msg->header.stamp, msg->pose.pose.position,
+                            msg->pose.pose.orientation);
+        } else if (type == kPoseWithCovariance) {
+          const auto msg = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>();
+          p = ToPoseMessage(index, msg->header.stamp, msg->pose.pose.position,
+                            msg->pose.pose.orientation);
+        } else {
+          const auto msg = m.instantiate<geometry_msgs::TransformStamped>();
+          p = ToPoseMessage(index, msg->header.stamp, msg->transform.translation,
+                            msg->transform.rotation);
+        }
+        out.push_back(p);
+      });
   return out;
 }
 
@@ -228,14 +205,7 @@ std::optional<CameraInfoMessage> BagReader::FirstCameraInfo(const std::string& t
         throw FileError(path_, 0, fmt::format("{} on topic {} (message 0)", kCameraInfo, topic),
                         m.getDataType());
       }
-      const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
-      CameraInfoMessage c;
-      c.width = static_cast<int>(msg->width);
-      c.height = static_cast<int>(msg->height);
-      c.distortion_model = msg->distortion_model;
-      c.d = msg->D;
-      std::copy(msg->K.begin(), msg->K.end(), c.k);
-      out = c;
+      out = ToCameraInfo(*m.instantiate<sensor_msgs::CameraInfo>());
       break;
     }
   } catch (const FileError&) {

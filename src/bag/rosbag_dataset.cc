@@ -6,14 +6,13 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
+#include <opencv2/core/mat.hpp>
 
 #include "bag/bag_messages.h"
+#include "bag/message_convert.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
-#include "sparseloop/core/quaternion.h"
 #include "sparseloop/io/trajectory_io.h"
 
 namespace sparseloop {
@@ -87,16 +86,12 @@ Trajectory PosesToTrajectory(const std::vector<bag_internal::PoseMessage>& messa
   traj.has_rotation = true;
   traj.has_timestamps = true;
   for (const auto& m : messages) {
-    const Eigen::Quaterniond q = QuaternionFromXyzw(m.orientation_xyzw[0], m.orientation_xyzw[1],
-                                                    m.orientation_xyzw[2], m.orientation_xyzw[3]);
-    if (!(std::abs(q.norm() - 1.0) < 1e-3)) {
-      throw FileError(file, 0,
-                      fmt::format("a unit quaternion in message {} of topic {}", m.index, topic),
-                      fmt::format("norm {}", q.norm()));
+    try {
+      traj.poses.push_back(StampedPose{m.stamp, m.index, bag_internal::PoseOf(m)});
+    } catch (const bag_internal::MessageError& e) {
+      throw FileError(
+          file, 0, fmt::format("{} in message {} of topic {}", e.expected, m.index, topic), e.got);
     }
-    traj.poses.push_back(StampedPose{
-        m.stamp, m.index,
-        Rigid3d(q.normalized(), Eigen::Vector3d(m.position[0], m.position[1], m.position[2]))});
   }
   std::stable_sort(
       traj.poses.begin(), traj.poses.end(),
@@ -106,32 +101,11 @@ Trajectory PosesToTrajectory(const std::vector<bag_internal::PoseMessage>& messa
 
 CameraIntrinsics IntrinsicsFromCameraInfo(const bag_internal::CameraInfoMessage& c,
                                           const std::string& file, const std::string& topic) {
-  CameraIntrinsics k;
-  k.fx = c.k[0];
-  k.cx = c.k[2];
-  k.fy = c.k[4];
-  k.cy = c.k[5];
-  k.width = c.width;
-  k.height = c.height;
-  const bool any = std::any_of(c.d.begin(), c.d.end(), [](double v) { return v != 0.0; });
-  if (any && (c.distortion_model == "plumb_bob" || c.distortion_model == "radtan")) {
-    k.distortion_model = DistortionModel::kRadialTangential;
-    k.distortion = c.d;
-  } else if (any && c.distortion_model == "equidistant") {
-    k.distortion_model = DistortionModel::kEquidistant;
-    k.distortion = c.d;
-  } else if (any) {
-    throw FileError(file, 0,
-                    fmt::format("distortion_model plumb_bob or equidistant in topic {}", topic),
-                    fmt::format("'{}'", c.distortion_model));
-  }
   try {
-    k.Check();
-  } catch (const std::invalid_argument& e) {
-    throw FileError(file, 0, fmt::format("valid intrinsics in topic {} (message 0)", topic),
-                    e.what());
+    return bag_internal::IntrinsicsFromCameraInfo(c);
+  } catch (const bag_internal::MessageError& e) {
+    throw FileError(file, 0, fmt::format("{} in topic {} (message 0)", e.expected, topic), e.got);
   }
-  return k;
 }
 
 // Decodes the frames' messages on demand; keeps the bag open.
@@ -154,54 +128,10 @@ class BagImageReader : public DatasetImageReader {
                        fmt::format("{} in message {} of topic {}", expected, index, topic_), got);
     };
     cv::Mat gray;
-    if (m.header.compressed) {
-      gray = cv::imdecode(cv::Mat(1, static_cast<int>(m.data.size()), CV_8UC1, m.data.data()),
-                          cv::IMREAD_GRAYSCALE);
-      if (gray.empty()) {
-        throw fail("an image OpenCV decodes",
-                   fmt::format("'{}' data of {} bytes that do not decode", m.header.encoding,
-                               m.data.size()));
-      }
-    } else {
-      const std::string& e = m.header.encoding;
-      const int channels = e == "mono8" || e == "8UC1"                   ? 1
-                           : e == "mono16" || e == "16UC1"               ? -2
-                           : e == "bgr8" || e == "rgb8" || e == "8UC3"   ? 3
-                           : e == "bgra8" || e == "rgba8" || e == "8UC4" ? 4
-                                                                         : 0;
-      if (channels == 0) {
-        throw fail("encoding mono8, 8UC1, mono16, 16UC1, bgr8, rgb8, bgra8 or rgba8",
-                   fmt::format("'{}'", e));
-      }
-      const int w = m.header.width, h = m.header.height;
-      const int64_t row = int64_t{w} * std::abs(channels);
-      if (w <= 0 || h <= 0 || m.step < row ||
-          int64_t{m.step} * h > static_cast<int64_t>(m.data.size())) {
-        throw fail(fmt::format("{}x{} {} pixels in rows of step {} (>= {})", w, h, e, m.step, row),
-                   fmt::format("{} bytes of data", m.data.size()));
-      }
-      if (channels == -2) {
-        cv::Mat wide(h, w, CV_16UC1, m.data.data(), m.step);
-        cv::Mat fixed = wide;
-        if (m.big_endian) {
-          fixed = wide.clone();
-          for (int r = 0; r < h; ++r) {
-            auto* p = fixed.ptr<uint16_t>(r);
-            for (int c = 0; c < w; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
-          }
-        }
-        fixed.convertTo(gray, CV_8UC1, 1.0 / 256.0);
-      } else {
-        cv::Mat view(h, w, CV_8UC(channels), m.data.data(), m.step);
-        if (channels == 1) {
-          gray = view.clone();
-        } else {
-          const bool rgb = e.rfind("rgb", 0) == 0;
-          cv::cvtColor(view, gray,
-                       channels == 3 ? (rgb ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY)
-                                     : (rgb ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY));
-        }
-      }
+    try {
+      gray = bag_internal::DecodeGray(m);
+    } catch (const bag_internal::MessageError& e) {
+      throw fail(e.expected, e.got);
     }
     if (size_.width == 0) {
       size_ = {gray.cols, gray.rows};
