@@ -64,3 +64,21 @@ function(sparseloop_ros_cxx17 target)
     ${SL_ROS_MSGS_INCLUDE_DIRS})
   target_include_directories(${target} PRIVATE ${PROJECT_SOURCE_DIR}/include ${PROJECT_SOURCE_DIR}/src)
 endfunction()
+
+# The node (src/ros, sparseloop_node) needs roscpp and a few more message packages besides the bag
+# ones: SPARSELOOP_HAVE_ROS_NODE, SPARSELOOP_ROS_NODE_LIBS, SPARSELOOP_ROS_NODE_INCLUDES.
+set(SPARSELOOP_HAVE_ROS_NODE OFF)
+pkg_check_modules(SL_ROS_NODE QUIET roscpp tf2_ros std_srvs std_msgs visualization_msgs
+  diagnostic_msgs)
+if(NOT SL_ROS_NODE_FOUND AND "$ENV{CI}" STREQUAL "true")
+  message(FATAL_ERROR "sparseloop: CI=true needs the ROS node packages (roscpp tf2_ros std_srvs "
+                      "visualization_msgs; run scripts/setup)")
+elseif(NOT SL_ROS_NODE_FOUND)
+  message(STATUS "sparseloop: ROS node off (roscpp / tf2_ros / std_srvs / visualization_msgs not "
+                 "found; scripts/setup installs them)")
+  return()
+endif()
+set(SPARSELOOP_HAVE_ROS_NODE ON)
+set(SPARSELOOP_ROS_NODE_LIBS ${SL_ROS_NODE_LINK_LIBRARIES} ${SPARSELOOP_ROS_BAG_LIBS})
+set(SPARSELOOP_ROS_NODE_INCLUDES ${SL_ROS_NODE_INCLUDE_DIRS})
+message(STATUS "sparseloop: ROS 1 roscpp found: sparseloop_node is built")

@@ -1,0 +1,391 @@
+"""sparseloop_node against `sparseloop run`, for real: a roscore of its own on a free loopback port,
+a bag written from the CLI tests' rendered sequence (images, camera_info, raw poses) played at 5x
+real time, the node's topics read by this process (rospy). Everything started here is stopped here.
+
+Environment (set by CTest): SPARSELOOP_CLI, SPARSELOOP_NODE, PYTHONPATH with the build tree's
+sparseloop module (images and trajectories are read with it).
+"""
+import csv
+import json
+import os
+import pathlib
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+import pytest
+
+import sparseloop
+
+IMAGE, INFO, POSE = "/cam0/image_raw", "/cam0/camera_info", "/vslam/pose"
+
+
+def require(var):
+    path = os.environ.get(var)
+    if not path or not os.path.exists(path):
+        pytest.fail(f"{var} must name the built binary (got {path!r})")
+    return path
+
+
+def free_port():
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def quaternion_xyzw(r):
+    """Rotation matrix -> unit quaternion (x, y, z, w)."""
+    t = np.trace(r)
+    if t > 0:
+        s = 2.0 * np.sqrt(t + 1.0)
+        return np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
+                         (r[1, 0] - r[0, 1]) / s, 0.25 * s])
+    i = int(np.argmax(np.diag(r)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+    q = np.zeros(4)
+    q[i] = 0.25 * s
+    q[j] = (r[j, i] + r[i, j]) / s
+    q[k] = (r[k, i] + r[i, k]) / s
+    q[3] = (r[k, j] - r[j, k]) / s
+    return q
+
+
+class Sequence:
+    """The rendered 60-frame aerial circuit: frames, stamps, intrinsics, raw poses, run's output."""
+
+    def __init__(self, root, cli):
+        self.root = root
+        self.seq = root / "seq"
+        subprocess.run([cli, "render", "--world", "aerial", "--plan", "circuit", "--frames", "60",
+                        "--laps", "2", "--seed", "1", "--out", str(self.seq)], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.stamps = [float(x) for x in (self.seq / "times.txt").read_text().split()]
+        p0 = (self.seq / "calib.txt").read_text().splitlines()[0].split()[1:]
+        self.fx, self.cx, self.fy, self.cy = float(p0[0]), float(p0[2]), float(p0[5]), float(p0[6])
+        self.images = sorted((self.seq / "image_0").glob("*.png"))
+        self.raw = sparseloop.read_trajectory(str(self.seq / "poses_raw.txt"), "kitti")["poses"]
+        assert len(self.images) == len(self.stamps) == len(self.raw) == 60
+        # `run` without the render's mapped pixels: the bag has none.
+        self.config = root / "no_mapped.json"
+        self.config.write_text('{"use_mapped_pixels": false}')
+        self.run_out = root / "run"
+        subprocess.run([cli, "run", "--dataset", f"kitti:{self.seq}", "--poses",
+                        str(self.seq / "poses_raw.txt"), "--config", str(self.config), "--out",
+                        str(self.run_out)], check=True, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.PIPE)
+        with open(self.run_out / "loops.csv") as f:
+            rows = [r for r in csv.DictReader(f) if r["status"] == "detected"]
+        self.run_loops = {(int(r["query"]), int(r["match"])) for r in rows}
+        self.run_accepted = {(int(r["query"]), int(r["match"])) for r in rows
+                             if r["accepted"] == "1"}
+        traj = sparseloop.read_trajectory(str(self.run_out / "trajectory_kitti.txt"), "kitti")
+        self.run_positions = traj["poses"][:, :3, 3]
+
+    def frame_of(self, stamp):
+        i = int(np.argmin(np.abs(np.array(self.stamps) - stamp)))
+        assert abs(self.stamps[i] - stamp) < 1e-6, stamp
+        return i
+
+    def image_msg(self, i, stamp=None):
+        from sensor_msgs.msg import Image
+        import rospy
+        img = sparseloop.read_image(str(self.images[i]))
+        m = Image()
+        m.header.stamp = rospy.Time.from_sec(self.stamps[i] if stamp is None else stamp)
+        m.header.frame_id = "cam0"
+        m.height, m.width = img.shape
+        m.encoding = "mono8"
+        m.step = img.shape[1]
+        m.data = img.tobytes()
+        return m
+
+    def info_msg(self):
+        from sensor_msgs.msg import CameraInfo
+        import rospy
+        m = CameraInfo()
+        m.header.stamp = rospy.Time.from_sec(self.stamps[0])
+        m.width, m.height = 640, 480
+        m.distortion_model = "plumb_bob"
+        m.D = [0.0] * 5
+        m.K = [self.fx, 0, self.cx, 0, self.fy, self.cy, 0, 0, 1]
+        return m
+
+    def pose_msg(self, i):
+        from geometry_msgs.msg import PoseStamped
+        import rospy
+        m = PoseStamped()
+        m.header.stamp = rospy.Time.from_sec(self.stamps[i])
+        m.header.frame_id = "world"
+        t, q = self.raw[i][:3, 3], quaternion_xyzw(self.raw[i][:3, :3])
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = t
+        (m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
+         m.pose.orientation.w) = q
+        return m
+
+    def write_bag(self, path):
+        import rosbag
+        import rospy
+        with rosbag.Bag(str(path), "w") as bag:
+            for i in range(len(self.stamps)):
+                t = rospy.Time.from_sec(self.stamps[i] + 1.0)  # a bag refuses record time 0
+                if i == 0:
+                    bag.write(INFO, self.info_msg(), t)
+                bag.write(POSE, self.pose_msg(i), t)
+                bag.write(IMAGE, self.image_msg(i), t)
+
+
+class Ros:
+    """roscore on a free loopback port; this process as a rospy node; started processes."""
+
+    def __init__(self, root):
+        self.port = free_port()
+        self.env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{self.port}",
+                        ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1", ROS_HOME=str(root / "ros"),
+                        ROS_LOG_DIR=str(root / "ros" / "log"))
+        os.environ.update({k: self.env[k] for k in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_IP",
+                                                    "ROS_HOME", "ROS_LOG_DIR")})
+        self.procs = []
+        self.core = self.start(["roscore", "-p", str(self.port)], "roscore")
+        import rosgraph
+        master = rosgraph.Master("/sparseloop_test")
+        deadline = time.time() + 30
+        while True:
+            try:
+                master.getPid()
+                break
+            except Exception:
+                if time.time() > deadline or self.core.poll() is not None:
+                    raise RuntimeError(f"roscore did not come up on port {self.port}")
+                time.sleep(0.2)
+        import rospy
+        rospy.init_node("sparseloop_test", anonymous=True, disable_signals=True)
+
+    def start(self, cmd, name):
+        home = pathlib.Path(self.env["ROS_HOME"])
+        home.mkdir(parents=True, exist_ok=True)
+        log = open(home / f"{name}.log", "a")
+        p = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                             start_new_session=True)
+        p.log_path = log.name
+        self.procs.append(p)
+        return p
+
+    @staticmethod
+    def stop(p, timeout=20):
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGINT)
+            try:
+                p.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        return p.returncode
+
+    def close(self):
+        import rospy
+        rospy.signal_shutdown("test done")
+        for p in reversed(self.procs):
+            self.stop(p)
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    with tempfile.TemporaryDirectory(prefix="sparseloop_ros_") as d:
+        yield Sequence(pathlib.Path(d), require("SPARSELOOP_CLI"))
+
+
+@pytest.fixture(scope="module")
+def ros(sequence):
+    r = Ros(sequence.root)
+    yield r
+    r.close()
+    assert all(p.poll() is not None for p in r.procs)
+
+
+class NodeRun:
+    """One sparseloop_node (name /sparseloop) and what it publishes."""
+
+    def __init__(self, ros, root, params):
+        import rospy
+        from nav_msgs.msg import Path
+        from std_msgs.msg import Float64MultiArray
+        from visualization_msgs.msg import MarkerArray
+        from diagnostic_msgs.msg import DiagnosticArray
+        self.ros = ros
+        self.loops, self.paths, self.markers, self.diag = [], [], [], {}
+        if rospy.has_param("/sparseloop"):
+            rospy.delete_param("/sparseloop")
+        for k, v in params.items():
+            rospy.set_param("/sparseloop/" + k, v)
+        self.subs = [
+            rospy.Subscriber("/sparseloop/loops", Float64MultiArray, self.loops.append),
+            rospy.Subscriber("/sparseloop/path", Path, self.paths.append),
+            rospy.Subscriber("/sparseloop/markers", MarkerArray, self.markers.append),
+            rospy.Subscriber("/diagnostics", DiagnosticArray, self.on_diag)]
+        self.proc = ros.start([require("SPARSELOOP_NODE"), "__name:=sparseloop",
+                               f"image:={IMAGE}", f"camera_info:={INFO}", f"pose:={POSE}"],
+                              "node")
+        wait_for(lambda: self.subs[0].get_num_connections() > 0 and self.subscribed(),
+                 30, "the node to subscribe and publish", self.proc)
+
+    def subscribed(self):
+        import rosgraph
+        _, subscribers, _ = rosgraph.Master("/sparseloop_test").getSystemState()
+        have = {t for t, nodes in subscribers if "/sparseloop" in nodes}
+        return {IMAGE, INFO, POSE} <= have
+
+    def on_diag(self, msg):
+        for s in msg.status:
+            if s.name == "/sparseloop":
+                self.diag = {kv.key: float(kv.value) for kv in s.values}
+
+    def finish(self):
+        import rospy
+        from std_srvs.srv import Trigger
+        rospy.wait_for_service("/sparseloop/finish", 10)
+        r = rospy.ServiceProxy("/sparseloop/finish", Trigger)()
+        assert r.success, r.message
+        return json.loads(r.message)
+
+    def close(self):
+        for s in self.subs:
+            s.unregister()
+        code = Ros.stop(self.proc)
+        assert code == 0, pathlib.Path(self.proc.log_path).read_text()[-3000:]
+
+
+def wait_for(condition, timeout, what, proc=None):
+    deadline = time.time() + timeout
+    while not condition():
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f"waiting for {what}: the node exited with {proc.returncode}: "
+                                 + pathlib.Path(proc.log_path).read_text()[-3000:])
+        if time.time() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def loop_pairs(run, sequence):
+    pairs = set()
+    for m in run.loops:
+        assert [d.label for d in m.layout.dim][0] == "loop"
+        assert len(m.data) == 16
+        pairs.add((sequence.frame_of(m.data[0]), sequence.frame_of(m.data[1])))
+    return pairs
+
+
+@pytest.mark.parametrize("solve_while_running", [False, True])
+def test_node_on_a_played_bag_matches_run(ros, sequence, solve_while_running):
+    bag = sequence.root / "seq.bag"
+    if not bag.exists():
+        sequence.write_bag(bag)
+    traj_file = sequence.root / f"node_traj_{solve_while_running}.txt"
+    run = NodeRun(ros, sequence.root, {
+        "config": {"use_mapped_pixels": False}, "solve_while_running": solve_while_running,
+        "trajectory_file": str(traj_file), "loops_file": str(sequence.root / "node_loops.csv")})
+    try:
+        play = ros.start(["rosbag", "play", "-r", "5", "--quiet", str(bag)], "play")
+        assert play.wait(120) == 0
+        # Every image reached the node before it is told to finish.
+        wait_for(lambda: run.diag.get("images", 0) >= 60, 30, "60 images at the node", run.proc)
+        summary = run.finish()
+        wait_for(lambda: run.paths and len(run.paths[-1].poses) == 60, 10, "the final path")
+    finally:
+        run.close()
+    assert summary["keyframes"] == 60 and summary["keyframes_without_pose"] == 0, summary
+    assert summary["dropped_out_of_order"] == 0 and summary["dropped_bad"] == 0, summary
+    # The same loops as `run`, published as they were detected.
+    assert sequence.run_loops, "the rendered circuit has loops"
+    assert loop_pairs(run, sequence) == sequence.run_loops
+    accepted = {(l["query"], l["match"]) for l in summary["loops"] if l["accepted"]}
+    assert accepted == sequence.run_accepted
+    # The corrected path: run's trajectory (one solve at the end: to 1e-6 m; solved while the
+    # bag plays: the final solve starts from earlier corrections, to 0.05 m).
+    path = run.paths[-1]
+    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in path.poses])
+    stamps = [p.header.stamp.to_sec() for p in path.poses]
+    assert [sequence.frame_of(s) for s in stamps] == list(range(60))
+    tol = 0.05 if solve_while_running else 1e-6
+    err = np.linalg.norm(xyz - sequence.run_positions, axis=1).max()
+    assert err < tol, err
+    moved = np.linalg.norm(xyz - sequence.raw[:, :3, 3], axis=1).max()
+    assert moved > 10 * tol, "the loops corrected the raw trajectory"
+    # The trajectory file (TUM) is the path; markers draw the kept loops.
+    written = sparseloop.read_trajectory(str(traj_file), "tum")
+    assert np.abs(written["poses"][:, :3, 3] - xyz).max() < 1e-6
+    loops_marker = [m for m in run.markers[-1].markers if m.ns == "loops"][0]
+    assert len(loops_marker.points) == 2 * len(accepted)
+
+
+def test_node_survives_lost_tracking_and_out_of_order_stamps(ros, sequence):
+    import rospy
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import CameraInfo, Image
+    run = NodeRun(ros, sequence.root, {"config": {"use_mapped_pixels": False}})
+    pubs = {IMAGE: rospy.Publisher(IMAGE, Image, queue_size=100),
+            INFO: rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
+            POSE: rospy.Publisher(POSE, PoseStamped, queue_size=100)}
+    try:
+        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
+                 "the node to connect", run.proc)
+        pubs[INFO].publish(sequence.info_msg())
+        for i in range(40):
+            if i in (31, 34):
+                continue  # 31 comes late (below), 34 before 33
+            if i == 33:  # images out of order, both still waiting for their poses: reordered
+                pubs[IMAGE].publish(sequence.image_msg(34))
+                pubs[IMAGE].publish(sequence.image_msg(33))
+                pubs[POSE].publish(sequence.pose_msg(33))
+                pubs[POSE].publish(sequence.pose_msg(34))
+                continue
+            if not 15 <= i < 25:  # tracking lost: no pose for frames 15-24
+                pubs[POSE].publish(sequence.pose_msg(i))
+            pubs[IMAGE].publish(sequence.image_msg(i))
+            time.sleep(0.02)
+        wait_for(lambda: run.diag.get("keyframes", 0) >= 39, 60, "39 keyframes", run.proc)
+        # Too late to be used: 31 after 39 was taken, and 32 again.
+        pubs[IMAGE].publish(sequence.image_msg(31))
+        pubs[IMAGE].publish(sequence.image_msg(32))
+        wait_for(lambda: run.diag.get("images", 0) >= 41, 30, "41 images", run.proc)
+        summary = run.finish()
+        assert run.proc.poll() is None, "the node is alive after the gap"
+    finally:
+        run.close()
+    assert summary["images"] == 41, summary
+    assert summary["dropped_out_of_order"] == 2, summary
+    assert summary["keyframes"] == 39, summary
+    assert summary["keyframes_without_pose"] == 10, summary
+    assert summary["path_keyframes"] == 29, summary  # only keyframes with a pose are in the graph
+
+
+@pytest.mark.parametrize("params,message", [
+    ({"pose_typo": "x"}, "unknown parameter /sparseloop/pose_typo"),
+    ({"pose_type": "imu"}, "must be pose, pose_cov, odometry or tf, got 'imu'"),
+    ({"config": {"detector": {"nope": 1}}}, "detector.nope"),
+    ({"max_pose_dt": -1.0}, "~max_pose_dt must be > 0 s"),
+])
+def test_node_rejects_bad_parameters(ros, params, message):
+    import rospy
+    if rospy.has_param("/sparseloop"):
+        rospy.delete_param("/sparseloop")
+    for k, v in params.items():
+        rospy.set_param("/sparseloop/" + k, v)
+    proc = ros.start([require("SPARSELOOP_NODE"), "__name:=sparseloop"], "bad_node")
+    assert proc.wait(30) == 2
+    log = pathlib.Path(proc.log_path).read_text()
+    assert message in log, log[-2000:]
+    rospy.delete_param("/sparseloop")
+
+
+def test_launch_file_finds_the_node(ros):
+    """roslaunch resolves the package folder of the build tree (ROS_PACKAGE_PATH) and its node."""
+    package = pathlib.Path(require("SPARSELOOP_NODE")).parent.parent / "ros"
+    env = dict(ros.env, ROS_PACKAGE_PATH=f"{package}:/usr/share")
+    out = subprocess.run(["roslaunch", "--args", "/sparseloop", "sparseloop", "sparseloop.launch",
+                          "image:=/kf/image", "pose:=/kf/pose"], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    assert "sparseloop_node" in out and "image:=/kf/image" in out and "pose:=/kf/pose" in out, out
