@@ -104,7 +104,7 @@ struct NodeCore::Impl {
   std::optional<CameraIntrinsics> intrinsics;
   std::map<double, ImageData> images;
   std::map<double, Rigid3d> poses;
-  std::map<double, std::vector<float>> points;
+  std::map<double, std::vector<double>> points;
   double last_stamp = -std::numeric_limits<double>::infinity();  // of the last taken image
   bool finishing = false;
   NodeStats stats;
@@ -151,7 +151,7 @@ struct NodeCore::Impl {
         continue;
       }
       std::optional<Rigid3d> pose = Nearest(poses, stamp, params.max_pose_dt);
-      std::optional<std::vector<float>> xyz = Nearest(points, stamp, params.max_pose_dt);
+      std::optional<std::vector<double>> xyz = Nearest(points, stamp, params.max_pose_dt);
       // Poses and points older than any image still to come are of no use.
       poses.erase(poses.begin(), poses.lower_bound(stamp - params.max_pose_dt));
       points.erase(points.begin(), points.lower_bound(stamp - params.max_pose_dt));
@@ -163,7 +163,7 @@ struct NodeCore::Impl {
   }
 
   void Process(double stamp, const ImageData& image, const CameraIntrinsics& k,
-               const std::optional<Rigid3d>& pose, const std::optional<std::vector<float>>& xyz) {
+               const std::optional<Rigid3d>& pose, const std::optional<std::vector<double>>& xyz) {
     KeyframeInput input;
     try {
       input.image = bag_internal::DecodeGray(image);
@@ -458,7 +458,7 @@ void NodeCore::AddPose(const bag_internal::PoseMessage& pose) {
   s.wake.notify_all();
 }
 
-void NodeCore::AddMappedPoints(double stamp, std::vector<float> xyz) {
+void NodeCore::AddMappedPoints(double stamp, std::vector<double> xyz) {
   Impl& s = *impl_;
   {
     std::lock_guard<std::mutex> lock(s.mutex);

@@ -109,8 +109,8 @@ class NodeCore {
   void AddCameraInfo(const bag_internal::CameraInfoMessage& info);
   void AddImage(bag_internal::ImageData image);
   void AddPose(const bag_internal::PoseMessage& pose);
-  // Points in the camera frame, metres (x y z per point), stamped like their image.
-  void AddMappedPoints(double stamp, std::vector<float> xyz);
+  // Points in the camera frame (x y z per point, the raw poses' units), stamped like their image.
+  void AddMappedPoints(double stamp, std::vector<double> xyz);
 
   // Processes every queued image (those without a pose go on without one), runs the final solve,
   // delivers the final path, writes the files of NodeParams. Returns a JSON summary (stats,

@@ -1,11 +1,12 @@
 // sparseloop_node: the ROS 1 node (docs/ROS.md). Only the ROS side lives here (C++17: ROS 1 headers
 // do not compile as C++20); the logic is NodeCore (node_core.h), which sees plain structs.
 //
-// Subscribes:  image (sensor_msgs/Image) or image/compressed (~image_transport: compressed),
+// Subscribes:  image (sensor_msgs/Image) or <image>/compressed (~image_transport: compressed),
 //              camera_info (sensor_msgs/CameraInfo), the raw vSLAM pose (~pose_type: pose =
 //              geometry_msgs/PoseStamped, pose_cov = PoseWithCovarianceStamped, odometry =
 //              nav_msgs/Odometry, tf = the TF transform ~world_frame <- ~camera_frame at the image
-//              stamp), mapped_points (sensor_msgs/PointCloud2, x y z float32, camera frame).
+//              stamp), mapped_points (sensor_msgs/PointCloud2, x y z float32 or float64, camera
+//              frame).
 // Publishes:   ~loops (std_msgs/Float64MultiArray, one per detected loop, layout below),
 //              ~path (nav_msgs/Path, latched: the corrected keyframe trajectory after each solve),
 //              ~markers (visualization_msgs/MarkerArray, latched: keyframes and kept loops).
@@ -134,7 +135,9 @@ class Node {
     if (transport_ == "raw") {
       image_sub_ = nh.subscribe("image", 100, &Node::OnImage, this);
     } else {
-      image_sub_ = nh.subscribe("image/compressed", 100, &Node::OnCompressedImage, this);
+      // As image_transport does: the base topic (remapped as `image`) + "/compressed".
+      image_sub_ = nh.subscribe(nh.resolveName("image") + "/compressed", 100,
+                                &Node::OnCompressedImage, this);
     }
     info_sub_ = nh.subscribe("camera_info", 10, &Node::OnCameraInfo, this);
     points_sub_ = nh.subscribe("mapped_points", 100, &Node::OnPoints, this);
@@ -217,19 +220,41 @@ class Node {
         pose_index_++, msg->header.stamp, msg->pose.pose.position, msg->pose.pose.orientation));
   }
   void OnPoints(const sensor_msgs::PointCloud2::ConstPtr& msg) {
-    std::vector<float> xyz;
+    std::vector<double> xyz;
     try {
+      uint8_t type = 0;
+      int found = 0;
+      for (const auto& f : msg->fields) {
+        if (f.name == "x" || f.name == "y" || f.name == "z") {
+          if (found > 0 && f.datatype != type) throw std::runtime_error("x, y, z of mixed types");
+          type = f.datatype;
+          ++found;
+        }
+      }
+      if (found != 3) throw std::runtime_error("no x, y, z fields");
+      if (msg->is_bigendian) throw std::runtime_error("big-endian data");
       xyz.reserve(size_t{msg->width} * msg->height * 3);
-      for (sensor_msgs::PointCloud2ConstIterator<float> x(*msg, "x"), y(*msg, "y"), z(*msg, "z");
-           x != x.end(); ++x, ++y, ++z) {
-        xyz.insert(xyz.end(), {*x, *y, *z});
+      if (type == sensor_msgs::PointField::FLOAT32) {
+        ReadXyz<float>(*msg, &xyz);
+      } else if (type == sensor_msgs::PointField::FLOAT64) {
+        ReadXyz<double>(*msg, &xyz);
+      } else {
+        throw std::runtime_error("x, y, z of datatype " + std::to_string(type));
       }
     } catch (const std::exception& e) {
-      ROS_WARN("mapped_points %.9f ignored: %s (x y z float32 fields expected)",
+      ROS_WARN("mapped_points %.9f ignored: %s (float32 or float64 x y z expected)",
                msg->header.stamp.toSec(), e.what());
       return;
     }
     core_->AddMappedPoints(msg->header.stamp.toSec(), std::move(xyz));
+  }
+  template <typename T>
+  static void ReadXyz(const sensor_msgs::PointCloud2& msg, std::vector<double>* xyz) {
+    for (sensor_msgs::PointCloud2ConstIterator<T> x(msg, "x"), y(msg, "y"), z(msg, "z");
+         x != x.end(); ++x, ++y, ++z) {
+      xyz->insert(xyz->end(),
+                  {static_cast<double>(*x), static_cast<double>(*y), static_cast<double>(*z)});
+    }
   }
 
   // TF poses: each image stamp is looked up until the transform is there (or 10 s passed).

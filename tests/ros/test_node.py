@@ -82,8 +82,20 @@ class Sequence:
         self.run_loops = {(int(r["query"]), int(r["match"])) for r in rows}
         self.run_accepted = {(int(r["query"]), int(r["match"])) for r in rows
                              if r["accepted"] == "1"}
+        # `run` with the render's mapped/ pixels (the node gets them as PointCloud2).
+        mapped_out = root / "run_mapped"
+        subprocess.run([cli, "run", "--dataset", f"kitti:{self.seq}", "--poses",
+                        str(self.seq / "poses_raw.txt"), "--out", str(mapped_out)], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        with open(mapped_out / "loops.csv") as f:
+            self.run_mapped_loops = {(int(r["query"]), int(r["match"])) for r in csv.DictReader(f)
+                                     if r["status"] == "detected"}
         traj = sparseloop.read_trajectory(str(self.run_out / "trajectory_kitti.txt"), "kitti")
         self.run_positions = traj["poses"][:, :3, 3]
+
+    def mapped(self, i):
+        px, depths = sparseloop.read_mapped_pixels(str(self.seq / "mapped" / f"{i:06d}.txt"))
+        return np.asarray(px), np.asarray(depths)
 
     def frame_of(self, stamp):
         i = int(np.argmin(np.abs(np.array(self.stamps) - stamp)))
@@ -209,7 +221,7 @@ def ros(sequence):
 class NodeRun:
     """One sparseloop_node (name /sparseloop) and what it publishes."""
 
-    def __init__(self, ros, root, params):
+    def __init__(self, ros, root, params, image_topic=IMAGE, pose_topic=POSE, compressed=False):
         import rospy
         from nav_msgs.msg import Path
         from std_msgs.msg import Float64MultiArray
@@ -226,8 +238,11 @@ class NodeRun:
             rospy.Subscriber("/sparseloop/path", Path, self.paths.append),
             rospy.Subscriber("/sparseloop/markers", MarkerArray, self.markers.append),
             rospy.Subscriber("/diagnostics", DiagnosticArray, self.on_diag)]
+        self.inputs = {image_topic + ("/compressed" if compressed else ""), INFO} | (
+            {pose_topic} if pose_topic else set())
         self.proc = ros.start([require("SPARSELOOP_NODE"), "__name:=sparseloop",
-                               f"image:={IMAGE}", f"camera_info:={INFO}", f"pose:={POSE}"],
+                               f"image:={image_topic}", f"camera_info:={INFO}",
+                               f"pose:={pose_topic or POSE}", "mapped_points:=/mapped_points"],
                               "node")
         wait_for(lambda: self.subs[0].get_num_connections() > 0 and self.subscribed(),
                  30, "the node to subscribe and publish", self.proc)
@@ -236,7 +251,7 @@ class NodeRun:
         import rosgraph
         _, subscribers, _ = rosgraph.Master("/sparseloop_test").getSystemState()
         have = {t for t, nodes in subscribers if "/sparseloop" in nodes}
-        return {IMAGE, INFO, POSE} <= have
+        return self.inputs <= have
 
     def on_diag(self, msg):
         for s in msg.status:
@@ -256,6 +271,11 @@ class NodeRun:
             s.unregister()
         code = Ros.stop(self.proc)
         assert code == 0, pathlib.Path(self.proc.log_path).read_text()[-3000:]
+
+
+def unregister(publishers):
+    for p in publishers.values():
+        p.unregister()
 
 
 def wait_for(condition, timeout, what, proc=None):
@@ -354,6 +374,7 @@ def test_node_survives_lost_tracking_and_out_of_order_stamps(ros, sequence):
         summary = run.finish()
         assert run.proc.poll() is None, "the node is alive after the gap"
     finally:
+        unregister(pubs)
         run.close()
     assert summary["images"] == 41, summary
     assert summary["dropped_out_of_order"] == 2, summary
@@ -389,3 +410,109 @@ def test_launch_file_finds_the_node(ros):
                           "image:=/kf/image", "pose:=/kf/pose"], env=env, check=True,
                          capture_output=True, text=True).stdout
     assert "sparseloop_node" in out and "image:=/kf/image" in out and "pose:=/kf/pose" in out, out
+
+
+def cloud_msg(sequence, i, datatype):
+    """The render's mapped pixels of frame i, back-projected with their depths (camera frame)."""
+    import rospy
+    from sensor_msgs.msg import PointCloud2, PointField
+    px, depth = sequence.mapped(i)
+    keep = depth > 0
+    px, depth = px[keep].astype(np.float64), depth[keep].astype(np.float64)
+    xyz = np.stack([(px[:, 0] - sequence.cx) / sequence.fx * depth,
+                    (px[:, 1] - sequence.cy) / sequence.fy * depth, depth], axis=1)
+    dtype, size = (np.float32, 4) if datatype == PointField.FLOAT32 else (np.float64, 8)
+    m = PointCloud2()
+    m.header.stamp = rospy.Time.from_sec(sequence.stamps[i])
+    m.height, m.width = 1, len(xyz)
+    m.fields = [PointField(n, k * size, datatype, 1) for k, n in enumerate("xyz")]
+    m.is_bigendian, m.point_step, m.row_step, m.is_dense = False, 3 * size, 3 * size * len(xyz), True
+    m.data = xyz.astype(dtype).tobytes()
+    return m
+
+
+def test_node_takes_odometry_compressed_images_and_mapped_points(ros, sequence):
+    """pose_type odometry, image_transport compressed (the render's PNG files as they are), and
+    the mapped pixels as float64 PointCloud2: the loops of `run` with its mapped/ pixels."""
+    import rospy
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import CameraInfo, CompressedImage, PointCloud2, PointField
+    run = NodeRun(ros, sequence.root, {"pose_type": "odometry", "image_transport": "compressed",
+                                       "wait_for_points": True, "solve_while_running": False},
+                  image_topic="/cam1/image", pose_topic="/vslam/odom", compressed=True)
+    pubs = {"image": rospy.Publisher("/cam1/image/compressed", CompressedImage, queue_size=100),
+            "info": rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
+            "pose": rospy.Publisher("/vslam/odom", Odometry, queue_size=100),
+            "points": rospy.Publisher("/mapped_points", PointCloud2, queue_size=100)}
+    try:
+        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
+                 "the node to connect", run.proc)
+        pubs["info"].publish(sequence.info_msg())
+        for i in range(60):
+            p = sequence.pose_msg(i)
+            odom = Odometry()
+            odom.header, odom.pose.pose = p.header, p.pose
+            img = CompressedImage()
+            img.header.stamp, img.format = p.header.stamp, "png"
+            img.data = sequence.images[i].read_bytes()
+            pubs["image"].publish(img)
+            pubs["pose"].publish(odom)
+            pubs["points"].publish(cloud_msg(sequence, i, PointField.FLOAT64))
+            time.sleep(0.02)
+        wait_for(lambda: run.diag.get("keyframes", 0) >= 60, 60, "60 keyframes", run.proc)
+        summary = run.finish()
+    finally:
+        unregister(pubs)
+        run.close()
+    assert summary["keyframes"] == 60 and summary["keyframes_without_pose"] == 0, summary
+    assert summary["keyframes_with_points"] == 60, summary
+    # The depths are used: every loop closes with a 3D-3D Sim(3), as in `run` with mapped pixels
+    # (without them `run` has 8 of 32 two-view loops here).
+    assert {m.data[14] for m in run.loops} == {3.0}
+    # The projected points are the mapped pixels up to ~1e-12 px, and the extraction mask
+    # truncates pixel coordinates, so a mask cell may shift by one pixel: the same loop queries
+    # as `run`, each match within one keyframe of run's.
+    node = dict(loop_pairs(run, sequence))
+    ref = dict(sequence.run_mapped_loops)
+    assert node.keys() == ref.keys()
+    assert all(abs(node[q] - ref[q]) <= 1 for q in ref), (node, ref)
+
+
+def test_node_takes_poses_from_tf(ros, sequence):
+    import rospy
+    from geometry_msgs.msg import TransformStamped
+    from sensor_msgs.msg import CameraInfo, Image
+    from tf2_msgs.msg import TFMessage
+    run = NodeRun(ros, sequence.root, {"config": {"use_mapped_pixels": False}, "pose_type": "tf",
+                                       "world_frame": "map", "camera_frame": "cam0",
+                                       "solve_while_running": False}, pose_topic=None)
+    pubs = {"image": rospy.Publisher(IMAGE, Image, queue_size=100),
+            "info": rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
+            "tf": rospy.Publisher("/tf", TFMessage, queue_size=100)}
+    try:
+        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
+                 "the node to connect", run.proc)
+        pubs["info"].publish(sequence.info_msg())
+        for i in range(60):
+            p = sequence.pose_msg(i)
+            t = TransformStamped()
+            t.header.stamp, t.header.frame_id, t.child_frame_id = p.header.stamp, "map", "cam0"
+            t.transform.translation.x = p.pose.position.x
+            t.transform.translation.y = p.pose.position.y
+            t.transform.translation.z = p.pose.position.z
+            t.transform.rotation = p.pose.orientation
+            pubs["tf"].publish(TFMessage([t]))
+            pubs["image"].publish(sequence.image_msg(i))
+            time.sleep(0.02)
+        wait_for(lambda: run.diag.get("keyframes", 0) >= 59, 60, "59 keyframes", run.proc)
+        summary = run.finish()
+        wait_for(lambda: run.paths and len(run.paths[-1].poses) == 60, 10, "the final path")
+    finally:
+        unregister(pubs)
+        run.close()
+    assert summary["keyframes"] == 60 and summary["keyframes_without_pose"] == 0, summary
+    assert loop_pairs(run, sequence) == sequence.run_loops
+    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
+                    for p in run.paths[-1].poses])
+    assert np.linalg.norm(xyz - sequence.run_positions, axis=1).max() < 1e-6
+    assert run.paths[-1].header.frame_id == "map"
