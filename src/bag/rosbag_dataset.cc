@@ -13,6 +13,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/io/rosbag_spec.h"
 #include "sparseloop/io/trajectory_io.h"
 
 namespace sparseloop {
@@ -23,48 +24,6 @@ using bag_internal::ImageData;
 using bag_internal::ImageHeader;
 
 namespace {
-
-struct BagSpec {
-  std::string file;
-  std::string image, camera_info, pose, gt;
-};
-
-BagSpec ParseSpec(const std::string& spec) {
-  const std::string prefix = "rosbag:";
-  SL_CHECK_MSG(spec.rfind(prefix, 0) == 0, "a rosbag spec starts with 'rosbag:', got '{}'", spec);
-  const std::string rest = spec.substr(prefix.size());
-  const size_t q = rest.find('?');
-  BagSpec out;
-  out.file = rest.substr(0, q);
-  SL_CHECK_MSG(!out.file.empty(), "'{}': expected rosbag:FILE.bag?image=TOPIC[&pose=TOPIC...]",
-               spec);
-  if (q != std::string::npos) {
-    std::string query = rest.substr(q + 1);
-    size_t start = 0;
-    while (start <= query.size()) {
-      const size_t amp = std::min(query.find('&', start), query.size());
-      const std::string item = query.substr(start, amp - start);
-      start = amp + 1;
-      if (item.empty()) continue;
-      const size_t eq = item.find('=');
-      const std::string key = item.substr(0, eq);
-      const std::string value = eq == std::string::npos ? "" : item.substr(eq + 1);
-      std::string* field = key == "image"         ? &out.image
-                           : key == "camera_info" ? &out.camera_info
-                           : key == "pose"        ? &out.pose
-                           : key == "gt"          ? &out.gt
-                                                  : nullptr;
-      SL_CHECK_MSG(field != nullptr, "'{}': unknown key '{}' (valid: image, camera_info, pose, gt)",
-                   spec, key);
-      SL_CHECK_MSG(!value.empty() && value.front() == '/',
-                   "'{}': {}= needs a topic name starting with '/', got '{}'", spec, key, value);
-      *field = value;
-    }
-  }
-  SL_CHECK_MSG(!out.image.empty(), "'{}': no image topic (rosbag:FILE.bag?image=/cam0/image_raw)",
-               spec);
-  return out;
-}
 
 // The topic must be in the bag (with the listed types); the message lists what the bag has.
 const bag_internal::TopicInfo& RequireTopic(const std::vector<bag_internal::TopicInfo>& topics,
@@ -160,7 +119,7 @@ class BagImageReader : public DatasetImageReader {
 
 Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options) {
   options.Check();
-  const BagSpec s = ParseSpec(spec);
+  const RosbagSpec s = ParseRosbagSpec(spec);
   std::error_code ec;
   if (!fs::is_regular_file(s.file, ec)) throw FileError(s.file, 0, "a ROS bag file", "missing");
   auto bag = std::make_shared<BagReader>(s.file);

@@ -16,6 +16,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/rosbag_spec.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/search/search_area.h"
@@ -130,10 +131,7 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
 }
 
 bool DatasetHasPoseTopic(const std::string& dataset_spec) {
-  if (dataset_spec.rfind("rosbag:", 0) != 0) return false;
-  const size_t query = dataset_spec.find('?');
-  return query != std::string::npos && (dataset_spec.find("?pose=", query) != std::string::npos ||
-                                        dataset_spec.find("&pose=", query) != std::string::npos);
+  return IsRosbagSpec(dataset_spec) && !ParseRosbagSpec(dataset_spec).pose.empty();
 }
 
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {

@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "sparseloop/io/rosbag_spec.h"
+
 #ifdef SPARSELOOP_HAVE_ROSBAG
 #include "sparseloop/bag/rosbag_dataset.h"
 #endif
@@ -20,7 +22,7 @@ bool HaveRosbagDatasets() {
 }
 
 Dataset OpenDatasetSpec(const std::string& spec, const DatasetOptions& options) {
-  if (spec.rfind("rosbag:", 0) == 0) {
+  if (IsRosbagSpec(spec)) {
 #ifdef SPARSELOOP_HAVE_ROSBAG
     return OpenRosbagDataset(spec, options);
 #else
