@@ -78,19 +78,13 @@ int RunDetect(int argc, char** argv) {
   DatasetOptions dataset_options;
   dataset_options.intrinsics_name = "--intrinsics";
   if (!intrinsics_spec.empty()) dataset_options.intrinsics = ParseIntrinsicsFlag(intrinsics_spec);
-  if (!poses.empty()) dataset_options.poses = poses;
   Dataset dataset = OpenDatasetSpec(dataset_spec, dataset_options);
   SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", dataset_spec);
   // Raw poses come only from --poses or a rosbag: pose topic: a dataset's own ground truth (KITTI
   // poses.txt, a render's poses.txt) is never searched with as if a vSLAM had produced it (#21).
-  if (poses.empty() && !dataset.raw_poses.empty()) {
-    const Trajectory raw =
-        MatchRawPosesToFrames(dataset, dataset.raw_poses, pipeline_options.raw_association_max_dt,
-                              dataset.raw_poses_source);
-    for (size_t i = 0; i < dataset.frames.size(); ++i)
-      dataset.frames[i].gt_world_from_cam = raw.poses[i].world_from_cam;
-  }
-  const bool have_poses = (!poses.empty() || !dataset.raw_poses.empty()) && dataset.has_gt();
+  const std::optional<Trajectory> raw =
+      RawPosesForFrames(poses, dataset, pipeline_options.raw_association_max_dt);
+  const bool have_poses = raw.has_value();
   if (!have_poses) {
     if (overrides.search.empty()) {
       options.search.strategy = SearchStrategy::kGlobal;
@@ -134,10 +128,7 @@ int RunDetect(int argc, char** argv) {
     input.image = ReadFrameGray(dataset, frame);
     if (input.image.empty()) throw FileError(frame.image_path.string(), 0, "a readable image");
     input.intrinsics = dataset.intrinsics;
-    if (have_poses && frame.gt_world_from_cam)
-      input.world_from_cam = Sim3d(*frame.gt_world_from_cam);
-    else if (have_poses)
-      SL_CHECK_MSG(false, "frame {} has no pose while others do", frame.index);
+    if (have_poses) input.world_from_cam = Sim3d(raw->poses[i].world_from_cam);
     const LoopResult r = detector.Process(input);
     bytes += detector.record(frame.index).Bytes();
     if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), map_session));

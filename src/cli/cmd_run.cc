@@ -82,17 +82,8 @@ int RunRun(int argc, char** argv) {
         flags.dataset));
   }
   const Dataset dataset = OpenDatasetFromFlags(flags);
-  Trajectory raw_file;
-  std::string raw_source = flags.poses;
-  if (!flags.poses.empty()) {
-    raw_file = ReadTrajectory(flags.poses);
-    RequireOrientations("--poses", flags.poses, raw_file);
-  } else {
-    raw_file = dataset.raw_poses;
-    raw_source = dataset.raw_poses_source;
-  }
-  const Trajectory raw =
-      MatchRawPosesToFrames(dataset, raw_file, options.raw_association_max_dt, raw_source);
+  const Trajectory raw = *RawPosesForFrames(flags.poses, dataset, options.raw_association_max_dt);
+  const std::string raw_source = flags.poses.empty() ? dataset.raw_poses_source : flags.poses;
   std::optional<Trajectory> gt;
   std::string gt_file;  // the file evaluated against
   if (!gt_path.empty()) {

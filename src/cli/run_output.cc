@@ -17,6 +17,7 @@
 #include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/rosbag_spec.h"
+#include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/search/search_area.h"
@@ -128,6 +129,22 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
   app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
   app.add_option("--out", f->out, "Output directory")->required();
   app.add_flag("--quiet", f->quiet, "No progress line");
+}
+
+std::optional<Trajectory> RawPosesForFrames(const std::string& poses_flag, const Dataset& dataset,
+                                            double max_dt) {
+  Trajectory raw_file;
+  std::string source = poses_flag;
+  if (!poses_flag.empty()) {
+    raw_file = ReadTrajectory(poses_flag);
+    RequireOrientations("--poses", poses_flag, raw_file);
+  } else if (!dataset.raw_poses.empty()) {
+    raw_file = dataset.raw_poses;
+    source = dataset.raw_poses_source;
+  } else {
+    return std::nullopt;
+  }
+  return MatchRawPosesToFrames(dataset, raw_file, max_dt, source);
 }
 
 bool DatasetHasPoseTopic(const std::string& dataset_spec) {

@@ -67,6 +67,11 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
 // A trajectory `run` builds on must carry orientations: FileError-based std::invalid_argument
 // naming `flag` and the file for a positions-only one.
 void RequireOrientations(const std::string& flag, const std::string& path, const Trajectory& t);
+// The raw vSLAM pose of every frame (run and detect): --poses when given (`poses_flag`), else the
+// rosbag: dataset's pose topic; matched to the frames by MatchRawPosesToFrames. Empty when there
+// is neither (never the dataset's ground truth).
+std::optional<Trajectory> RawPosesForFrames(const std::string& poses_flag, const Dataset& dataset,
+                                            double max_dt);
 
 // A one-line progress display on stderr when stderr is a terminal; silent otherwise.
 class ProgressLine {
