@@ -1,0 +1,204 @@
+// NodeCore without ROS: the stamp synchronisation, the bounded queue, drops and parameter errors.
+// (tests/ros/test_node.py runs the node itself against `sparseloop run`.)
+#include "ros/node_core.h"
+
+#include <chrono>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace sparseloop::ros_node {
+namespace {
+
+using bag_internal::CameraInfoMessage;
+using bag_internal::ImageData;
+using bag_internal::PoseMessage;
+
+constexpr int kW = 320, kH = 240;
+
+ImageData Image(double stamp, const std::string& encoding = "mono8") {
+  cv::Mat img(kH, kW, CV_8UC1);
+  cv::randu(img, 0, 255);
+  cv::GaussianBlur(img, img, cv::Size(3, 3), 0);
+  ImageData m;
+  m.header.stamp = stamp;
+  m.header.encoding = encoding;
+  m.header.width = kW;
+  m.header.height = kH;
+  m.step = kW;
+  m.data.assign(img.datastart, img.dataend);
+  return m;
+}
+
+CameraInfoMessage Info() {
+  CameraInfoMessage c;
+  c.width = kW;
+  c.height = kH;
+  const double k[9] = {300, 0, 159.5, 0, 300, 119.5, 0, 0, 1};
+  std::copy(k, k + 9, c.k);
+  return c;
+}
+
+PoseMessage Pose(double stamp) {
+  PoseMessage p;
+  p.stamp = stamp;
+  p.position[0] = stamp;  // moving along x
+  return p;
+}
+
+// Polls until pred() or 30 s.
+template <typename Pred>
+bool WaitFor(Pred pred) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+struct Warnings {
+  std::mutex mutex;
+  std::vector<std::string> lines;
+  NodeCallbacks Callbacks() {
+    NodeCallbacks c;
+    c.on_warning = [this](const std::string& w) {
+      std::lock_guard<std::mutex> lock(mutex);
+      lines.push_back(w);
+    };
+    return c;
+  }
+  bool Any(const std::string& needle) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& l : lines)
+      if (l.find(needle) != std::string::npos) return true;
+    return false;
+  }
+};
+
+TEST(NodeCore, AnImageTakesThePoseNearestItsStampWithinMaxPoseDt) {
+  NodeParams params;
+  params.max_pose_dt = 0.01;
+  NodeCore core(params, {});
+  core.AddCameraInfo(Info());
+  core.AddPose(Pose(0.995));  // 5 ms early: taken
+  core.AddImage(Image(1.0));
+  core.AddPose(Pose(2.02));  // 20 ms late: too far
+  core.AddImage(Image(2.0));
+  core.AddPose(Pose(3.0));  // lets the image at 2.0 go (no nearer pose can come)
+  ASSERT_TRUE(WaitFor([&] { return core.Stats().keyframes == 2; }));
+  const NodeStats s = core.Stats();
+  EXPECT_EQ(s.keyframes_without_pose, 1);
+  EXPECT_EQ(s.queued, 0);
+  const auto summary = nlohmann::json::parse(core.Finish());
+  EXPECT_EQ(summary["keyframes"], 2);
+  EXPECT_EQ(summary["path_keyframes"], 1);  // only the one with a pose is in the graph
+}
+
+TEST(NodeCore, WithoutPosesTheQueueIsBoundedAndTheOldestGoesOnWithoutAPose) {
+  NodeParams params;
+  params.image_queue = 3;
+  NodeCore core(params, {});
+  core.AddCameraInfo(Info());
+  for (int i = 0; i < 6; ++i) core.AddImage(Image(1.0 + i));
+  // Six images, room for three: the three oldest went on although no pose came.
+  ASSERT_TRUE(WaitFor([&] { return core.Stats().keyframes == 3; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(core.Stats().keyframes, 3);
+  EXPECT_EQ(core.Stats().queued, 3);
+  const auto summary = nlohmann::json::parse(core.Finish());  // the rest go at finish
+  EXPECT_EQ(summary["keyframes"], 6);
+  EXPECT_EQ(summary["keyframes_without_pose"], 6);
+}
+
+TEST(NodeCore, ImagesBeforeCameraInfoWaitAndAreDroppedWhenTheQueueIsFull) {
+  Warnings warnings;
+  NodeParams params;
+  params.image_queue = 2;
+  NodeCore core(params, warnings.Callbacks());
+  for (int i = 0; i < 4; ++i) {
+    core.AddPose(Pose(1.0 + i));
+    core.AddImage(Image(1.0 + i));
+  }
+  ASSERT_TRUE(WaitFor([&] { return core.Stats().dropped_no_camera_info == 2; }));
+  core.AddCameraInfo(Info());
+  core.AddPose(Pose(10.0));
+  ASSERT_TRUE(WaitFor([&] { return core.Stats().keyframes == 2; }));
+  EXPECT_EQ(core.Stats().keyframes_without_pose, 0);
+  EXPECT_TRUE(warnings.Any("no camera_info yet"));
+}
+
+TEST(NodeCore, LateDuplicateAndUndecodableImagesAreDroppedAndCounted) {
+  Warnings warnings;
+  NodeCore core(NodeParams{}, warnings.Callbacks());
+  core.AddCameraInfo(Info());
+  core.AddPose(Pose(1.0));
+  core.AddPose(Pose(2.0));
+  core.AddImage(Image(2.0));
+  ASSERT_TRUE(WaitFor([&] { return core.Stats().keyframes == 1; }));
+  core.AddImage(Image(1.0));  // before the one taken
+  core.AddImage(Image(2.0));  // the same stamp again
+  core.AddPose(Pose(3.0));
+  core.AddImage(Image(3.0, "yuv422"));
+  ImageData short_data = Image(3.5);
+  short_data.data.resize(100);
+  core.AddImage(short_data);
+  const auto summary = nlohmann::json::parse(core.Finish());
+  EXPECT_EQ(summary["keyframes"], 1);
+  EXPECT_EQ(summary["dropped_out_of_order"], 2);
+  EXPECT_EQ(summary["dropped_bad"], 2);
+  EXPECT_TRUE(warnings.Any("'yuv422'"));
+  EXPECT_TRUE(warnings.Any("100 bytes of data"));
+}
+
+TEST(NodeCore, BadPosesAndCameraInfoAreIgnoredWithAWarning) {
+  Warnings warnings;
+  NodeCore core(NodeParams{}, warnings.Callbacks());
+  PoseMessage bad = Pose(1.0);
+  bad.orientation_xyzw[3] = 2.0;  // not a unit quaternion
+  core.AddPose(bad);
+  CameraInfoMessage info = Info();
+  info.k[0] = -1;  // negative focal length
+  core.AddCameraInfo(info);
+  EXPECT_TRUE(warnings.Any("unit quaternion"));
+  EXPECT_TRUE(warnings.Any("camera_info ignored"));
+  EXPECT_EQ(core.Stats().poses, 0);
+  EXPECT_EQ(core.Stats().dropped_bad, 2);
+}
+
+TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
+  const auto message = [](const NodeParams& p) {
+    try {
+      NodeCore core(p, {});
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  NodeParams p;
+  p.config_json = R"({"detector": {"nope": 1}})";
+  EXPECT_NE(message(p).find("detector.nope"), std::string::npos) << message(p);
+  p.config_json = "[1]";
+  EXPECT_NE(message(p).find("~config must be a dictionary"), std::string::npos) << message(p);
+  p.config_json = "{";
+  EXPECT_NE(message(p).find("~config is not a JSON object"), std::string::npos) << message(p);
+  p = NodeParams{};
+  p.max_pose_dt = 0;
+  EXPECT_NE(message(p).find("~max_pose_dt"), std::string::npos);
+  p = NodeParams{};
+  p.image_queue = 0;
+  EXPECT_NE(message(p).find("~image_queue"), std::string::npos);
+  p = NodeParams{};
+  p.config_file = "/nonexistent/config.json";
+  EXPECT_NE(message(p).find("/nonexistent/config.json"), std::string::npos) << message(p);
+}
+
+}  // namespace
+}  // namespace sparseloop::ros_node
