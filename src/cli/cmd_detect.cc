@@ -154,20 +154,8 @@ int RunDetect(int argc, char** argv) {
   const double wall_ms = wall.ElapsedMs();
 
   const std::filesystem::path out(out_dir);
-  WriteFileAtomically(out / "loops.csv", [&](std::ostream& os) {
-    os << "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-          "scale,match_session,query_image,match_image\n";
-    const ImageNames images = ImageNamesByFrame(dataset);
-    for (const auto& l : loops) {
-      const auto& p = l.match_from_query;
-      os << fmt::format(
-          "{},{},{:.6f},{},{},{},{},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{}{}\n",
-          l.query_id, l.match_id, l.score, l.inliers, ToString(l.status), ToString(l.pose_kind),
-          l.planar_alternative ? 1 : 0, p.rotation.x(), p.rotation.y(), p.rotation.z(),
-          p.rotation.w(), p.translation.x(), p.translation.y(), p.translation.z(), p.scale,
-          l.match_session, ImageColumns(l, images));
-    }
-  });
+  WriteLoopsCsv(out / "loops.csv", loops, nullptr, nullptr, ImageNamesByFrame(dataset),
+                /*graph_columns=*/false);
   WriteFramesCsv(out / "frames.csv", frame_results);
   nlohmann::json summary = {
       {"command", "detect"},

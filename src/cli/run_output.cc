@@ -314,10 +314,11 @@ nlohmann::json SourceCountsJson(const std::vector<LoopResult>& results) {
 
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
                    const std::vector<bool>* accepted, const LoopTruth* truth,
-                   const ImageNames& images) {
+                   const ImageNames& images, bool graph_columns) {
   WriteFileAtomically(path, [&](std::ostream& os) {
-    os << "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
-          "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image\n";
+    os << "query,match,score,inliers,status,pose_kind,planar_alternative,"
+       << (graph_columns ? "accepted,correct," : "")
+       << "qx,qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image\n";
     os << std::setprecision(10);
     for (size_t i = 0; i < loops.size(); ++i) {
       const LoopResult& l = loops[i];
@@ -326,12 +327,15 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
       os << l.query_id << ',' << l.match_id << ',' << l.score << ',' << l.inliers << ','
          << ToString(l.status) << ',' << ToString(l.pose_kind) << ','
          << (l.planar_alternative ? 1 : 0) << ',';
-      if (accepted && i < accepted->size()) os << ((*accepted)[i] ? 1 : 0);
-      os << ',';
-      if (truth && i < truth->correct.size() && truth->correct[i])
-        os << (*truth->correct[i] ? 1 : 0);
-      os << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ','
-         << t.y() << ',' << t.z() << ',' << l.match_from_query.scale << ',' << l.match_session
+      if (graph_columns) {
+        if (accepted && i < accepted->size()) os << ((*accepted)[i] ? 1 : 0);
+        os << ',';
+        if (truth && i < truth->correct.size() && truth->correct[i])
+          os << (*truth->correct[i] ? 1 : 0);
+        os << ',';
+      }
+      os << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ',' << t.y()
+         << ',' << t.z() << ',' << l.match_from_query.scale << ',' << l.match_session
          << ImageColumns(l, images) << '\n';
     }
   });

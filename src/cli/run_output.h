@@ -87,18 +87,19 @@ class ProgressLine {
   double last_s_ = -1.0;
 };
 
-// loops.csv:
+// loops.csv, for run and detect (one writer; docs/FORMATS.md):
 // query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,qz,qw,tx,
 // ty,tz,scale,match_session (planar_alternative 0/1: LoopResult::planar_alternative; accepted /
 // correct are empty when unknown, including rows past the end of
-// `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session).
+// `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session). Without
+// `graph_columns` (detect: no pose graph) the accepted and correct columns are left out.
 // Last two columns query_image, match_image: the frames' image file names (no folder) from
 // `images` (frame index -> name; empty when unknown, e.g. a match in an earlier map session).
 using ImageNames = std::map<int64_t, std::string>;
 ImageNames ImageNamesByFrame(const Dataset& dataset);
 void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& loops,
                    const std::vector<bool>* accepted, const LoopTruth* truth,
-                   const ImageNames& images);
+                   const ImageNames& images, bool graph_columns = true);
 // The image name columns of one loops.csv row: ",query_image,match_image".
 std::string ImageColumns(const LoopResult& loop, const ImageNames& images);
 // frames.csv: why each processed frame did or did not close a loop, one row per frame:
