@@ -244,7 +244,8 @@ class PyLoopClosing {
 
   py::dict AddKeyframe(int64_t id, double timestamp, const py::array& image,
                        const py::object& intrinsics, const py::object& pose,
-                       const py::object& mapped_pixels, const py::object& mapped_depths) {
+                       const py::object& mapped_pixels, const py::object& mapped_depths,
+                       const py::object& odometry_covariance) {
     KeyframeInput in;
     in.id = id;
     in.timestamp = timestamp;
@@ -267,6 +268,16 @@ class PyLoopClosing {
         in.mapped_pixels.emplace_back(px.at(i, 0), px.at(i, 1));
     }
     if (!mapped_depths.is_none()) in.mapped_depths = mapped_depths.cast<std::vector<float>>();
+    if (!odometry_covariance.is_none()) {
+      const auto c = odometry_covariance
+                         .cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
+      if (c.ndim() != 2 || c.shape(0) != 6 || c.shape(1) != 6)
+        throw std::invalid_argument("odometry_covariance must have shape (6, 6)");
+      Eigen::Matrix<double, 6, 6> m;
+      for (int r = 0; r < 6; ++r)
+        for (int col = 0; col < 6; ++col) m(r, col) = c.at(r, col);
+      in.odometry_covariance = m;
+    }
     LoopEvent e;
     {
       py::gil_scoped_release release;
@@ -352,9 +363,12 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
       .def("add_keyframe", &PyLoopClosing::AddKeyframe, py::arg("id"), py::arg("timestamp"),
            py::arg("image"), py::arg("intrinsics"), py::arg("pose") = py::none(),
            py::arg("mapped_pixels") = py::none(), py::arg("mapped_depths") = py::none(),
+           py::arg("odometry_covariance") = py::none(),
            "Detects a loop for the keyframe (uint8 (H, W) image; intrinsics (fx, fy, cx, cy); "
            "pose: 4x4 world_from_cam or (R, t[, scale]); None = tracking lost) and queues it for "
-           "the background solve. Returns the loop event as a dict.")
+           "the background solve. odometry_covariance: (6, 6) covariance of the raw step from the "
+           "previous keyframe with a pose, order [translation, rotation] (None: the default "
+           "model). Returns the loop event as a dict.")
       .def("finish", &PyLoopClosing::Finish, "Final solve; joins the background thread.")
       .def("wait_for_idle", &PyLoopClosing::WaitForIdle)
       .def("corrections", &PyLoopClosing::Corrections,

@@ -91,12 +91,17 @@ def test_bad_input_raises_with_the_library_message():
         closing.add_keyframe(**blank(0, pose=np.diag([1.0, 2.0, 1.0, 1.0])))
     event = closing.add_keyframe(**blank(1, pose=(np.eye(3), np.zeros(3))))
     assert event["status"] == "no_features" and event["in_graph"]
+    with pytest.raises(ValueError, match=r"shape \(6, 6\)"):
+        closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=np.eye(3))
+    with pytest.raises(ValueError, match="odometry_covariance: odometry covariance must be positive"):
+        closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=-np.eye(6))
+    closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=np.eye(6) * 1e-4)
     # Ids must increase: the C++ check's message, unchanged.
     with pytest.raises(ValueError, match=r"keyframe id 1 must be greater than the previous"):
         closing.add_keyframe(**blank(1))
     closing.finish()
     with pytest.raises(ValueError):
-        closing.add_keyframe(**blank(2))
+        closing.add_keyframe(**blank(3))
 
 
 def test_config_keys_are_the_cli_registry(cli):

@@ -132,6 +132,24 @@ Matrix7d OdometryWeighting::Information(const Sim3d& from_from_to) const {
   return LoopInformation(sigma_t, rotation_sigma_rad, scale_sigma);
 }
 
+Matrix7d OdometryWeighting::InformationFromCovariance(
+    const Eigen::Matrix<double, 6, 6>& covariance) const {
+  SL_CHECK_MSG(covariance.allFinite(), "odometry covariance must be finite");
+  const double asym = (covariance - covariance.transpose()).cwiseAbs().maxCoeff();
+  SL_CHECK_MSG(asym <= 1e-9 * std::max(1e-300, covariance.cwiseAbs().maxCoeff()),
+               "odometry covariance must be symmetric (largest |C - C^T| {})", asym);
+  const Eigen::LLT<Eigen::Matrix<double, 6, 6>> llt(covariance);
+  SL_CHECK_MSG(llt.info() == Eigen::Success && covariance.diagonal().minCoeff() > 0,
+               "odometry covariance must be positive definite (smallest diagonal element {})",
+               covariance.diagonal().minCoeff());
+  Matrix7d information = Matrix7d::Zero();
+  information.topLeftCorner<6, 6>() = llt.solve(Eigen::Matrix<double, 6, 6>::Identity());
+  information.topLeftCorner<6, 6>() =
+      0.5 * (information.topLeftCorner<6, 6>() + information.topLeftCorner<6, 6>().transpose());
+  information(6, 6) = 1.0 / (scale_sigma * scale_sigma);
+  return information;
+}
+
 Matrix7d LoopInformation(double translation_sigma, double rotation_sigma_rad, double scale_sigma) {
   SL_CHECK_MSG(translation_sigma > 0 && rotation_sigma_rad > 0 && scale_sigma > 0,
                "sigmas must be > 0, got {} {} {}", translation_sigma, rotation_sigma_rad,

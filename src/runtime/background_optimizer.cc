@@ -39,8 +39,9 @@ bool BackgroundOptimizer::Push(Message message) {
   return true;
 }
 
-bool BackgroundOptimizer::PushKeyframe(int64_t id, const Sim3d& raw_world_from_keyframe) {
-  return Push(KeyframeMsg{id, raw_world_from_keyframe});
+bool BackgroundOptimizer::PushKeyframe(int64_t id, const Sim3d& raw_world_from_keyframe,
+                                       const std::optional<Matrix7d>& odometry_information) {
+  return Push(KeyframeMsg{id, raw_world_from_keyframe, odometry_information});
 }
 
 bool BackgroundOptimizer::PushLoop(const LoopConstraint& loop) { return Push(loop); }
@@ -71,7 +72,7 @@ void BackgroundOptimizer::Apply(const Message& message, bool* end, bool* new_loo
       edge.to = kf->id;
       edge.from_from_to = step;
       if (graph_.vertex_type() != VertexType::kSim3) edge.from_from_to.scale = 1.0;
-      edge.information = options_.odometry.Information(step);
+      edge.information = kf->information ? *kf->information : options_.odometry.Information(step);
       graph_.AddEdge(edge);
     }
     has_last_raw_ = true;

@@ -1,6 +1,9 @@
 #include "sparseloop/runtime/loop_closing.h"
 
 #include <algorithm>
+#include <stdexcept>
+
+#include <fmt/format.h>
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
@@ -32,6 +35,17 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   SL_CHECK_MSG(!has_last_id_ || keyframe.id > last_id_,
                "keyframe id {} must be greater than the previous keyframe's ({})", keyframe.id,
                last_id_);
+  // The caller's odometry covariance is checked first: a bad one changes nothing.
+  std::optional<Matrix7d> odometry_information;
+  if (keyframe.odometry_covariance && optimizer_ && keyframe.world_from_cam) {
+    try {
+      odometry_information =
+          options_.optimizer.odometry.InformationFromCovariance(*keyframe.odometry_covariance);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(fmt::format("keyframe {}: KeyframeInput::odometry_covariance: {}",
+                                              keyframe.id, e.what()));
+    }
+  }
   // Validates everything else before any state changes (throws with the detector unchanged).
   LoopEvent event;
   event.result = detector_.Process(keyframe);
@@ -46,7 +60,9 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
     unsolved_ids_.push_back(keyframe.id);
     unsolved_raw_.push_back(raw);
   }
-  optimizer_->PushKeyframe(keyframe.id, raw);  // blocks while the queue is full
+  // Blocks while the queue is full. The first graph keyframe has no odometry edge: its
+  // covariance, if any, is not used.
+  optimizer_->PushKeyframe(keyframe.id, raw, odometry_information);
   event.in_graph = true;
   // Local step length at the query: from the previous graph keyframe (RunPipeline: the previous
   // dataset frame; the same unless frames were skipped).

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli/cli_runner.h"
+#include "sparseloop/eval/align.h"
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/pipeline.h"
@@ -302,12 +303,93 @@ TEST(LoopClosing, BadKeyframeThrowsAndLeavesStateIntact) {
   KeyframeInput no_image = BlankKeyframe(7, PoseAt(2));
   no_image.image = cv::Mat();
   expect_rejected(no_image, "image");
+  KeyframeInput bad_cov = BlankKeyframe(7, PoseAt(2));
+  bad_cov.odometry_covariance = Eigen::Matrix<double, 6, 6>::Identity();
+  (*bad_cov.odometry_covariance)(0, 1) = 0.5;  // not symmetric
+  expect_rejected(bad_cov, "odometry_covariance: odometry covariance must be symmetric");
+  bad_cov.odometry_covariance = -Eigen::Matrix<double, 6, 6>::Identity();
+  expect_rejected(bad_cov, "positive definite");
+  (*bad_cov.odometry_covariance)(2, 2) = std::nan("");
+  expect_rejected(bad_cov, "finite");
 
   const LoopEvent ok = closing.AddKeyframe(BlankKeyframe(7, PoseAt(2)));
   EXPECT_TRUE(ok.in_graph);
   closing.Finish();
   EXPECT_EQ(closing.graph().VertexIds(), (std::vector<int64_t>{5, 6, 7}));
   EXPECT_EQ(closing.graph().edges().size(), 2u);  // the odometry chain, nothing from bad input
+}
+
+// The caller's odometry covariance (KeyframeInput::odometry_covariance) becomes the information
+// of the odometry edge ending at that keyframe; keyframes without one keep the default model.
+TEST(LoopClosing, CallerOdometryCovarianceIsTheEdgeInformation) {
+  LoopClosing::Options options;
+  LoopClosing closing(options);
+  Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Random();
+  const Eigen::Matrix<double, 6, 6> cov =
+      a * a.transpose() * 1e-3 + Eigen::Matrix<double, 6, 6>::Identity() * 1e-4;  // full, SPD
+  for (int i = 0; i < 4; ++i) {
+    KeyframeInput in = BlankKeyframe(i, PoseAt(i));
+    if (i == 2) in.odometry_covariance = cov;
+    closing.AddKeyframe(in);
+  }
+  closing.Finish();
+  const auto& edges = closing.graph().edges();
+  ASSERT_EQ(edges.size(), 3u);
+  ASSERT_EQ(edges[1].to, 2);
+  const Eigen::Matrix<double, 6, 6> info = edges[1].information.topLeftCorner<6, 6>();
+  EXPECT_LT((info * cov - Eigen::Matrix<double, 6, 6>::Identity()).cwiseAbs().maxCoeff(), 1e-9);
+  const double ss = options.optimizer.odometry.scale_sigma;
+  EXPECT_DOUBLE_EQ(edges[1].information(6, 6), 1.0 / (ss * ss));
+  EXPECT_EQ(edges[1].information.col(6).head<6>().norm(), 0.0);
+  EXPECT_EQ(edges[2].information, options.optimizer.odometry.Information(PoseAt(1)));
+  EXPECT_EQ(edges[0].information, options.optimizer.odometry.Information(PoseAt(1)));
+}
+
+// What the covariance does: the same loops on the rendered circuit, with the caller saying its
+// steps are loose (10 % of the step, 1 deg) or tight (0.1 %, 0.01 deg). Loose odometry lets the
+// verified loops pull the drifted raw trajectory towards the ground truth; tight odometry holds
+// it near the raw poses.
+TEST(LoopClosing, CallerOdometryCovarianceDecidesHowFarLoopsPull) {
+  const Sequence s = LoadSequence();
+  const auto ate = [&](double sigma_fraction, double sigma_rot_rad) {
+    LoopClosing closing(LoopClosingOptionsFor(PipelineOptions{}, false));
+    for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
+      KeyframeInput in = FrameInput(s, i);
+      if (i > 0) {
+        const double step = (s.raw.poses[i].world_from_cam.translation -
+                             s.raw.poses[i - 1].world_from_cam.translation)
+                                .norm();
+        Eigen::Matrix<double, 6, 1> d;
+        const double st = std::max(sigma_fraction * step, 1e-6);
+        d << st * st, st * st, st * st, sigma_rot_rad * sigma_rot_rad,
+            sigma_rot_rad * sigma_rot_rad, sigma_rot_rad * sigma_rot_rad;
+        in.odometry_covariance = d.asDiagonal();
+      }
+      closing.AddKeyframe(in);
+    }
+    closing.Finish();
+    const CorrectedKeyframes c = closing.Corrections();
+    std::vector<Eigen::Vector3d> est, gt;
+    for (size_t i = 0; i < c.ids.size(); ++i) {
+      est.push_back(c.world_from_keyframe[i].translation);
+      gt.push_back(s.dataset.frames[i].gt_world_from_cam->translation);
+    }
+    const AlignmentResult a = Umeyama(est, gt, Alignment::kSim3);
+    return a.rms_residual;
+  };
+  std::vector<Eigen::Vector3d> raw, gt;
+  for (size_t i = 0; i < s.raw.poses.size(); ++i) {
+    raw.push_back(s.raw.poses[i].world_from_cam.translation);
+    gt.push_back(s.dataset.frames[i].gt_world_from_cam->translation);
+  }
+  const double raw_ate = Umeyama(raw, gt, Alignment::kSim3).rms_residual;
+  const double loose = ate(0.1, 1.0 * M_PI / 180.0);
+  const double tight = ate(0.001, 0.01 * M_PI / 180.0);
+  RecordProperty("raw_ate", std::to_string(raw_ate));
+  RecordProperty("loose_ate", std::to_string(loose));
+  RecordProperty("tight_ate", std::to_string(tight));
+  EXPECT_LT(loose, 0.5 * raw_ate) << "raw " << raw_ate << " loose " << loose << " tight " << tight;
+  EXPECT_GT(tight, 2.0 * loose) << "raw " << raw_ate << " loose " << loose << " tight " << tight;
 }
 
 // A keyframe without pose goes to the detector only: no graph vertex, no corrected pose, and the

@@ -33,6 +33,12 @@ struct KeyframeInput {
   // as usual; with another strategy it is treated as "tracking lost" and relocalised against every
   // stored keyframe with a pose (Options::relocalize_without_pose; see LoopDetector::Relocalize).
   std::optional<Sim3d> world_from_cam;
+  // Optional: what the vSLAM knows of the uncertainty of its raw step from the previous keyframe
+  // with a pose to this one (LoopClosing's odometry edge; the detector ignores it): covariance of
+  // the relative pose in tangent order [translation(3), rotation(3)] (raw units^2, rad^2; the order
+  // of a ROS 6x6 pose covariance), symmetric positive definite. Absent: the default model
+  // (OdometryWeighting: a fraction of the step length, a rotation sigma per step).
+  std::optional<Eigen::Matrix<double, 6, 6>> odometry_covariance;
   // Optional informative area: pixels the vSLAM mapped (feature-based SLAM) with optional depths
   // (same length, <= 0 unknown, in the pose's units), or a mask of its high-gradient pixels.
   std::vector<cv::Point2f> mapped_pixels;

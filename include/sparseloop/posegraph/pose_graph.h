@@ -63,6 +63,12 @@ struct OdometryWeighting {
   double scale_sigma = 0.01;            // log-scale per step (only used by Sim(3) graphs)
   void Check() const;
   Matrix7d Information(const Sim3d& from_from_to) const;
+  // The information of a step whose covariance the caller knows (KeyframeInput::
+  // odometry_covariance): the inverse of the 6x6 covariance in tangent order [translation(3),
+  // rotation(3)] (raw units^2, rad^2), and 1 / scale_sigma^2 for the log scale. Throws
+  // std::invalid_argument unless the covariance is finite, symmetric (1e-9 relative) and positive
+  // definite.
+  Matrix7d InformationFromCovariance(const Eigen::Matrix<double, 6, 6>& covariance) const;
 };
 
 enum class RobustLoss { kTrivial, kHuber, kCauchy };

@@ -15,6 +15,7 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <variant>
 #include <vector>
@@ -60,7 +61,10 @@ class BackgroundOptimizer {
 
   // Keyframes in time order; consecutive keyframes are joined by an odometry edge with the raw
   // relative pose. Returns false when the stream was already finished.
-  bool PushKeyframe(int64_t id, const Sim3d& raw_world_from_keyframe);
+  // `odometry_information` (optional): the information of the odometry edge from the previous
+  // keyframe to this one, instead of options.odometry's model.
+  bool PushKeyframe(int64_t id, const Sim3d& raw_world_from_keyframe,
+                    const std::optional<Matrix7d>& odometry_information = std::nullopt);
   // A loop between two keyframes already pushed. Interrupts a running solve.
   bool PushLoop(const LoopConstraint& loop);
   // End of stream: processes everything queued, runs the final solve if loops arrived since the
@@ -81,6 +85,7 @@ class BackgroundOptimizer {
   struct KeyframeMsg {
     int64_t id;
     Sim3d raw;
+    std::optional<Matrix7d> information;  // of the odometry edge ending here; none: the model
   };
   struct EndMsg {};
   using Message = std::variant<KeyframeMsg, LoopConstraint, EndMsg>;
