@@ -260,6 +260,10 @@ class Node {
   // TF poses: each image stamp is looked up until the transform is there (or 10 s passed).
   void TrackForTf(const ros::Time& stamp) {
     if (pose_type_ != "tf") return;
+    if (stamp.isZero()) {  // a TF lookup at time 0 means "the latest": no pose for this image
+      ROS_WARN_THROTTLE(5.0, "image stamped 0: no TF lookup (time 0 means the latest transform)");
+      return;
+    }
     std::lock_guard<std::mutex> lock(tf_mutex_);
     pending_.push_back(stamp);
   }
