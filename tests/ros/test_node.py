@@ -308,7 +308,9 @@ def test_node_on_a_played_bag_matches_run(ros, sequence, solve_while_running):
         "config": {"use_mapped_pixels": False}, "solve_while_running": solve_while_running,
         "trajectory_file": str(traj_file), "loops_file": str(sequence.root / "node_loops.csv")})
     try:
-        play = ros.start(["rosbag", "play", "-r", "5", "--quiet", str(bag)], "play")
+        # Each topic waits for its subscriber (the node), so no first message is lost.
+        play = ros.start(["rosbag", "play", "--wait-for-subscribers", "-d", "0.5", "-r", "5",
+                          "--quiet", str(bag)], "play")
         assert play.wait(120) == 0
         # Every image reached the node before it is told to finish.
         wait_for(lambda: run.diag.get("images", 0) >= 60, 30, "60 images at the node", run.proc)
