@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -18,6 +17,7 @@
 
 #include "bag/message_convert.h"
 #include "sparseloop/core/error.h"
+#include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/config.h"
 #include "sparseloop/pipeline/pipeline.h"
@@ -27,6 +27,21 @@ namespace sparseloop::ros_node {
 
 using bag_internal::ImageData;
 using bag_internal::MessageError;
+
+std::vector<std::pair<std::string, double>> NodeStats::Fields() const {
+  return {{"images", images},
+          {"keyframes", keyframes},
+          {"keyframes_without_pose", keyframes_without_pose},
+          {"keyframes_with_points", keyframes_with_points},
+          {"poses", poses},
+          {"queued", queued},
+          {"loops", loops},
+          {"solves", solves},
+          {"mean_keyframe_ms", mean_keyframe_ms},
+          {"dropped_out_of_order", dropped_out_of_order},
+          {"dropped_no_camera_info", dropped_no_camera_info},
+          {"dropped_bad", dropped_bad}};
+}
 
 void NodeParams::Check() const {
   if (!(max_pose_dt > 0.0 && std::isfinite(max_pose_dt))) {
@@ -177,10 +192,6 @@ struct NodeCore::Impl {
                       input.image.cols, input.image.rows, k.width, k.height));
       return;
     }
-    {
-      std::lock_guard<std::mutex> lock(records_mutex);
-      input.id = static_cast<int64_t>(stamp_of_id.size());
-    }
     input.timestamp = stamp;
     input.intrinsics = k;
     if (pose) input.world_from_cam = Sim3d(*pose);
@@ -198,8 +209,10 @@ struct NodeCore::Impl {
     const auto start = std::chrono::steady_clock::now();
     LoopEvent event;
     {
-      // The id is taken before AddKeyframe so that a correction of this keyframe finds its stamp.
+      // Id and stamp are recorded before AddKeyframe so that a correction of this keyframe finds
+      // its stamp (ids are 0, 1, ... : the index in stamp_of_id).
       std::lock_guard<std::mutex> lock(records_mutex);
+      input.id = static_cast<int64_t>(stamp_of_id.size());
       stamp_of_id.push_back(stamp);
     }
     try {
@@ -350,20 +363,9 @@ struct NodeCore::Impl {
                            {"accepted", ok}});
     }
     if (!params.loops_file.empty()) {
-      std::ofstream f(params.loops_file);
-      f << csv;
-      if (!f) throw FileError(params.loops_file, 0, "a writable file (~loops_file)");
+      WriteFileAtomically(params.loops_file, [&](std::ostream& os) { os << csv; });
     }
-    const NodeStats s = Snapshot();
-    out["keyframes"] = s.keyframes;
-    out["keyframes_without_pose"] = s.keyframes_without_pose;
-    out["keyframes_with_points"] = s.keyframes_with_points;
-    out["images"] = s.images;
-    out["poses"] = s.poses;
-    out["dropped_out_of_order"] = s.dropped_out_of_order;
-    out["dropped_no_camera_info"] = s.dropped_no_camera_info;
-    out["dropped_bad"] = s.dropped_bad;
-    out["solves"] = s.solves;
+    for (const auto& [name, value] : Snapshot().Fields()) out[name] = value;
     out["path_keyframes"] = path.stamps.size();
     out["loops"] = loop_rows;
     return out.dump();

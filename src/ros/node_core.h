@@ -18,6 +18,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bag/bag_messages.h"
@@ -88,6 +89,8 @@ struct NodeStats {
   int64_t solves = 0;             // pose-graph solves completed
   int64_t queued = 0;             // images waiting now
   double mean_keyframe_ms = 0.0;  // AddKeyframe wall time, mean
+  // Every counter by name (the finish summary and /diagnostics).
+  std::vector<std::pair<std::string, double>> Fields() const;
 };
 
 struct NodeCallbacks {

@@ -386,24 +386,12 @@ class Node {
                        ? diagnostic_msgs::DiagnosticStatus::WARN
                        : diagnostic_msgs::DiagnosticStatus::OK;
     status.message = s.keyframes > 0 ? "running" : "waiting for images";
-    const auto add = [&](const char* key, double value) {
+    for (const auto& [key, value] : s.Fields()) {
       diagnostic_msgs::KeyValue kv;
       kv.key = key;
       kv.value = std::to_string(value);
       status.values.push_back(kv);
-    };
-    add("images", s.images);
-    add("keyframes", s.keyframes);
-    add("keyframes_without_pose", s.keyframes_without_pose);
-    add("keyframes_with_points", s.keyframes_with_points);
-    add("poses", s.poses);
-    add("queued", s.queued);
-    add("loops", s.loops);
-    add("solves", s.solves);
-    add("mean_keyframe_ms", s.mean_keyframe_ms);
-    add("dropped_out_of_order", s.dropped_out_of_order);
-    add("dropped_no_camera_info", s.dropped_no_camera_info);
-    add("dropped_bad", s.dropped_bad);
+    }
     array.status.push_back(status);
     diag_pub_.publish(array);
     ROS_INFO(

@@ -54,15 +54,25 @@ def quaternion_xyzw(r):
     return q
 
 
-class Sequence:
-    """The rendered 60-frame aerial circuit: frames, stamps, intrinsics, raw poses, run's output."""
+def run_loops(out):
+    """Detected loops (query, match) and the accepted ones of a `run --out` folder."""
+    with open(out / "loops.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["status"] == "detected"]
+    return ({(int(r["query"]), int(r["match"])) for r in rows},
+            {(int(r["query"]), int(r["match"])) for r in rows if r["accepted"] == "1"})
 
-    def __init__(self, root, cli):
-        self.root = root
-        self.seq = root / "seq"
-        subprocess.run([cli, "render", "--world", "aerial", "--plan", "circuit", "--frames", "60",
-                        "--laps", "2", "--seed", "1", "--out", str(self.seq)], check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+class Sequence:
+    """A rendered 60-frame aerial flight (2 laps): frames, stamps, intrinsics, raw poses, and
+    `run`'s output on it."""
+
+    def __init__(self, root, cli, plan="circuit", seed=1, drift=1.0):
+        self.root, self.cli = root, cli
+        self.seq = root / f"seq_{plan}_{seed}_{drift}"
+        subprocess.run([cli, "render", "--world", "aerial", "--plan", plan, "--frames", "60",
+                        "--laps", "2", "--seed", str(seed), "--drift", str(drift), "--out",
+                        str(self.seq)], check=True, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL)
         self.stamps = [float(x) for x in (self.seq / "times.txt").read_text().split()]
         p0 = (self.seq / "calib.txt").read_text().splitlines()[0].split()[1:]
         self.fx, self.cx, self.fy, self.cy = float(p0[0]), float(p0[2]), float(p0[5]), float(p0[6])
@@ -70,28 +80,28 @@ class Sequence:
         self.raw = sparseloop.read_trajectory(str(self.seq / "poses_raw.txt"), "kitti")["poses"]
         assert len(self.images) == len(self.stamps) == len(self.raw) == 60
         # `run` without the render's mapped pixels: the bag has none.
-        self.config = root / "no_mapped.json"
-        self.config.write_text('{"use_mapped_pixels": false}')
-        self.run_out = root / "run"
-        subprocess.run([cli, "run", "--dataset", f"kitti:{self.seq}", "--poses",
-                        str(self.seq / "poses_raw.txt"), "--config", str(self.config), "--out",
-                        str(self.run_out)], check=True, stdout=subprocess.DEVNULL,
-                       stderr=subprocess.PIPE)
-        with open(self.run_out / "loops.csv") as f:
-            rows = [r for r in csv.DictReader(f) if r["status"] == "detected"]
-        self.run_loops = {(int(r["query"]), int(r["match"])) for r in rows}
-        self.run_accepted = {(int(r["query"]), int(r["match"])) for r in rows
-                             if r["accepted"] == "1"}
-        # `run` with the render's mapped/ pixels (the node gets them as PointCloud2).
-        mapped_out = root / "run_mapped"
-        subprocess.run([cli, "run", "--dataset", f"kitti:{self.seq}", "--poses",
-                        str(self.seq / "poses_raw.txt"), "--out", str(mapped_out)], check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        with open(mapped_out / "loops.csv") as f:
-            self.run_mapped_loops = {(int(r["query"]), int(r["match"])) for r in csv.DictReader(f)
-                                     if r["status"] == "detected"}
+        config = root / "no_mapped.json"
+        config.write_text('{"use_mapped_pixels": false}')
+        self.run_out = self.seq.with_name(self.seq.name + "_run")
+        self.run(self.run_out, "--config", str(config))
+        self.run_loops, self.run_accepted = run_loops(self.run_out)
         traj = sparseloop.read_trajectory(str(self.run_out / "trajectory_kitti.txt"), "kitti")
         self.run_positions = traj["poses"][:, :3, 3]
+        self._run_mapped_loops = None
+
+    def run(self, out, *args):
+        subprocess.run([self.cli, "run", "--dataset", f"kitti:{self.seq}", "--poses",
+                        str(self.seq / "poses_raw.txt"), "--out", str(out), *args], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+    @property
+    def run_mapped_loops(self):
+        """`run`'s loops with the render's mapped/ pixels (the node gets them as PointCloud2)."""
+        if self._run_mapped_loops is None:
+            out = self.seq.with_name(self.seq.name + "_run_mapped")
+            self.run(out)
+            self._run_mapped_loops = run_loops(out)[0]
+        return self._run_mapped_loops
 
     def mapped(self, i):
         px, depths = sparseloop.read_mapped_pixels(str(self.seq / "mapped" / f"{i:06d}.txt"))
@@ -278,6 +288,13 @@ class NodeRun:
         assert code == 0, pathlib.Path(self.proc.log_path).read_text()[-3000:]
 
 
+def connect(run, publishers, info_msg):
+    """Waits until the node subscribed to every publisher, then publishes camera_info (latched)."""
+    wait_for(lambda: all(p.get_num_connections() > 0 for p in publishers.values()), 30,
+             "the node to connect", run.proc)
+    publishers["info"].publish(info_msg)
+
+
 def unregister(publishers):
     for p in publishers.values():
         p.unregister()
@@ -303,12 +320,21 @@ def loop_pairs(run, sequence):
     return pairs
 
 
+@pytest.fixture(scope="module")
+def figure8(sequence):
+    """A second flight over another world (seed 2): a figure-8 at three times the default drift
+    (raw Sim(3) ATE 17.6, 30 loops, 16 accepted)."""
+    return Sequence(sequence.root, require("SPARSELOOP_CLI"), plan="figure8", seed=2, drift=3.0)
+
+
+@pytest.mark.parametrize("flight", ["circuit", "figure8"])
 @pytest.mark.parametrize("solve_while_running", [False, True])
-def test_node_on_a_played_bag_matches_run(ros, sequence, solve_while_running):
-    bag = sequence.root / "seq.bag"
+def test_node_on_a_played_bag_matches_run(ros, request, flight, solve_while_running):
+    sequence = request.getfixturevalue("sequence" if flight == "circuit" else "figure8")
+    bag = sequence.seq.with_name(sequence.seq.name + ".bag")
     if not bag.exists():
         sequence.write_bag(bag)
-    traj_file = sequence.root / f"node_traj_{solve_while_running}.txt"
+    traj_file = sequence.root / f"node_traj_{flight}_{solve_while_running}.txt"
     run = NodeRun(ros, sequence.root, {
         "config": {"use_mapped_pixels": False}, "solve_while_running": solve_while_running,
         "trajectory_file": str(traj_file), "loops_file": str(sequence.root / "node_loops.csv")})
@@ -336,9 +362,13 @@ def test_node_on_a_played_bag_matches_run(ros, sequence, solve_while_running):
     xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in path.poses])
     stamps = [p.header.stamp.to_sec() for p in path.poses]
     assert [sequence.frame_of(s) for s in stamps] == list(range(60))
-    tol = 0.05 if solve_while_running else 1e-6
+    # Solved while running, the final solve starts from the previous estimate and Ceres stops at
+    # a relative cost decrease: the two minima agree to a fraction of the correction. 0.05 m, or
+    # 0.2 % of run's largest correction where that is larger (figure-8: 0.058 m of 52.6 m).
+    run_moved = np.linalg.norm(sequence.run_positions - sequence.raw[:, :3, 3], axis=1).max()
+    tol = max(0.05, 0.002 * run_moved) if solve_while_running else 1e-6
     err = np.linalg.norm(xyz - sequence.run_positions, axis=1).max()
-    assert err < tol, err
+    assert err < tol, (err, tol)
     moved = np.linalg.norm(xyz - sequence.raw[:, :3, 3], axis=1).max()
     assert moved > 10 * tol, "the loops corrected the raw trajectory"
     # The trajectory file (TUM) is the path; markers draw the kept loops.
@@ -353,30 +383,28 @@ def test_node_survives_lost_tracking_and_out_of_order_stamps(ros, sequence):
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import CameraInfo, Image
     run = NodeRun(ros, sequence.root, {"config": {"use_mapped_pixels": False}})
-    pubs = {IMAGE: rospy.Publisher(IMAGE, Image, queue_size=100),
-            INFO: rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
-            POSE: rospy.Publisher(POSE, PoseStamped, queue_size=100)}
+    pubs = {"image": rospy.Publisher(IMAGE, Image, queue_size=100),
+            "info": rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
+            "pose": rospy.Publisher(POSE, PoseStamped, queue_size=100)}
     try:
-        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
-                 "the node to connect", run.proc)
-        pubs[INFO].publish(sequence.info_msg())
+        connect(run, pubs, sequence.info_msg())
         for i in range(40):
             if i in (31, 34):
                 continue  # 31 comes late (below), 34 before 33
             if i == 33:  # images out of order, both still waiting for their poses: reordered
-                pubs[IMAGE].publish(sequence.image_msg(34))
-                pubs[IMAGE].publish(sequence.image_msg(33))
-                pubs[POSE].publish(sequence.pose_msg(33))
-                pubs[POSE].publish(sequence.pose_msg(34))
+                pubs["image"].publish(sequence.image_msg(34))
+                pubs["image"].publish(sequence.image_msg(33))
+                pubs["pose"].publish(sequence.pose_msg(33))
+                pubs["pose"].publish(sequence.pose_msg(34))
                 continue
             if not 15 <= i < 25:  # tracking lost: no pose for frames 15-24
-                pubs[POSE].publish(sequence.pose_msg(i))
-            pubs[IMAGE].publish(sequence.image_msg(i))
+                pubs["pose"].publish(sequence.pose_msg(i))
+            pubs["image"].publish(sequence.image_msg(i))
             time.sleep(0.02)
         wait_for(lambda: run.diag.get("keyframes", 0) >= 39, 60, "39 keyframes", run.proc)
         # Too late to be used: 31 after 39 was taken, and 32 again.
-        pubs[IMAGE].publish(sequence.image_msg(31))
-        pubs[IMAGE].publish(sequence.image_msg(32))
+        pubs["image"].publish(sequence.image_msg(31))
+        pubs["image"].publish(sequence.image_msg(32))
         wait_for(lambda: run.diag.get("images", 0) >= 41, 30, "41 images", run.proc)
         summary = run.finish()
         assert run.proc.poll() is None, "the node is alive after the gap"
@@ -452,9 +480,7 @@ def test_node_takes_odometry_compressed_images_and_mapped_points(ros, sequence):
             "pose": rospy.Publisher("/vslam/odom", Odometry, queue_size=100),
             "points": rospy.Publisher("/mapped_points", PointCloud2, queue_size=100)}
     try:
-        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
-                 "the node to connect", run.proc)
-        pubs["info"].publish(sequence.info_msg())
+        connect(run, pubs, sequence.info_msg())
         for i in range(60):
             p = sequence.pose_msg(i)
             odom = Odometry()
@@ -503,9 +529,7 @@ def test_node_takes_poses_from_tf(ros, sequence):
             "info": rospy.Publisher(INFO, CameraInfo, queue_size=10, latch=True),
             "tf": rospy.Publisher("/tf", TFMessage, queue_size=100)}
     try:
-        wait_for(lambda: all(p.get_num_connections() > 0 for p in pubs.values()), 30,
-                 "the node to connect", run.proc)
-        pubs["info"].publish(sequence.info_msg())
+        connect(run, pubs, sequence.info_msg())
         # Stamps from 100 s: a TF lookup at ROS time 0 means "the latest", so frame 0's stamp 0
         # cannot name a transform (the node warns and takes no pose for such an image).
         for i in range(60):
