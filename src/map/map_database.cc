@@ -8,6 +8,7 @@
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/packed_keyframe.h"
 
 namespace sparseloop {
 namespace {
@@ -73,6 +74,147 @@ int QueryInt(sqlite3* db, const char* sql, const std::filesystem::path& path) {
   return sqlite3_column_int(st.get(), 0);
 }
 
+constexpr const char* kCreateKeyframesV3 =
+    " (session INTEGER NOT NULL REFERENCES sessions(id), id INTEGER NOT NULL,"
+    " timestamp REAL NOT NULL, record BLOB NOT NULL, PRIMARY KEY(session, id))";
+
+// StoredKeyframe (plain arrays) -> the fields of a packed record. Sizes are checked by the caller.
+PackedKeyframe::Fields ToFields(const StoredKeyframe& kf) {
+  PackedKeyframe::Fields f;
+  f.id = kf.id;
+  f.timestamp = kf.timestamp;
+  f.has_pose = kf.has_pose;
+  if (kf.has_pose) f.world_from_cam = kf.raw_world_from_cam;
+  f.focal_px = kf.focal_px;
+  f.descriptors.resize(static_cast<size_t>(kf.num_features));
+  if (kf.num_features > 0) {
+    std::memcpy(f.descriptors.data(), kf.descriptors.data(), f.descriptors.size() * 32);
+  }
+  f.keypoints = kf.keypoints;
+  f.depths = kf.depths;
+  return f;
+}
+
+// A packed record read back -> StoredKeyframe (the quantised values).
+StoredKeyframe FromPacked(const PackedKeyframe& packed, int64_t session) {
+  PackedKeyframe::Fields f = packed.Unpack();
+  StoredKeyframe kf;
+  kf.session = session;
+  kf.id = f.id;
+  kf.timestamp = f.timestamp;
+  kf.has_pose = f.has_pose;
+  kf.raw_world_from_cam = f.has_pose ? f.world_from_cam : Sim3d::Identity();
+  kf.focal_px = f.focal_px;
+  kf.num_features = static_cast<int>(f.descriptors.size());
+  kf.descriptors.resize(f.descriptors.size() * 32);
+  if (!f.descriptors.empty()) {
+    std::memcpy(kf.descriptors.data(), f.descriptors.data(), kf.descriptors.size());
+  }
+  kf.keypoints = std::move(f.keypoints);
+  kf.depths = std::move(f.depths);
+  return kf;
+}
+
+// The record column of the current row as a validated packed keyframe; a bad blob is a
+// MapDatabaseError naming the file, the row and the reason.
+PackedKeyframe RecordFromColumn(sqlite3_stmt* stmt, int col, int64_t session, int64_t id,
+                                const std::filesystem::path& path) {
+  const auto* data = static_cast<const uint8_t*>(sqlite3_column_blob(stmt, col));
+  const int bytes = sqlite3_column_bytes(stmt, col);
+  PackedKeyframe packed;
+  try {
+    packed = PackedKeyframe::FromBytes({data, static_cast<size_t>(std::max(bytes, 0))});
+  } catch (const std::invalid_argument& e) {
+    throw MapDatabaseError(fmt::format("{}: corrupt keyframe record (session {}, id {}): {}",
+                                       path.string(), session, id, e.what()));
+  }
+  if (packed.id() != id) {
+    throw MapDatabaseError(
+        fmt::format("{}: corrupt keyframe record (session {}, id {}): the record holds id {}",
+                    path.string(), session, id, packed.id()));
+  }
+  return packed;
+}
+
+void CopyPackedRows(sqlite3* db, const std::filesystem::path& path);
+
+// Schema 2 -> 3 inside the caller's transaction: every row's columns are packed into one
+// record blob (create keyframes_v3, copy, drop the old table, rename).
+void MigrateKeyframesTwoToThree(sqlite3* db, const std::filesystem::path& path) {
+  const auto exec = [&](const std::string& sql) {
+    char* err = nullptr;
+    if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+      std::string msg = err ? err : sqlite3_errmsg(db);
+      sqlite3_free(err);
+      throw MapDatabaseError(
+          fmt::format("{}: SQLite error migrating to schema 3: {}", path.string(), msg));
+    }
+  };
+  exec(std::string("CREATE TABLE keyframes_v3") + kCreateKeyframesV3);
+  CopyPackedRows(db, path);  // its statements are finalized before the old table is dropped
+  exec("DROP TABLE keyframes; ALTER TABLE keyframes_v3 RENAME TO keyframes;");
+}
+
+void CopyPackedRows(sqlite3* db, const std::filesystem::path& path) {
+  Statement read(db,
+                 "SELECT session, id, timestamp, pose, num_features, descriptors, keypoints,"
+                 " depths, focal_px, has_pose FROM keyframes ORDER BY session, id",
+                 path);
+  Statement write(db, "INSERT INTO keyframes_v3(session, id, timestamp, record) VALUES(?,?,?,?)",
+                  path);
+  int rc;
+  while ((rc = read.Step()) == SQLITE_ROW) {
+    sqlite3_stmt* s = read.get();
+    StoredKeyframe kf;
+    kf.session = sqlite3_column_int64(s, 0);
+    kf.id = sqlite3_column_int64(s, 1);
+    kf.timestamp = sqlite3_column_double(s, 2);
+    kf.has_pose = sqlite3_column_int(s, 9) != 0;
+    kf.num_features = sqlite3_column_int(s, 4);
+    kf.descriptors = ColumnArray<uint8_t>(s, 5);
+    kf.keypoints = ColumnArray<float>(s, 6);
+    kf.depths = ColumnArray<float>(s, 7);
+    kf.focal_px = static_cast<float>(sqlite3_column_double(s, 8));
+    const size_t n = static_cast<size_t>(std::max(kf.num_features, 0));
+    std::string reason;
+    if (kf.num_features < 0 || kf.descriptors.size() != n * 32 || kf.keypoints.size() != n * 2 ||
+        (!kf.depths.empty() && kf.depths.size() != n)) {
+      reason = "array sizes do not match num_features";
+    }
+    PackedKeyframe packed;
+    if (reason.empty()) {
+      try {
+        if (kf.has_pose) {
+          kf.raw_world_from_cam =
+              SimFromBlob(sqlite3_column_blob(s, 3), sqlite3_column_bytes(s, 3), path);
+        }
+        packed = PackedKeyframe::Pack(ToFields(kf));
+      } catch (const std::exception& e) {
+        reason = e.what();
+      }
+    }
+    if (!reason.empty()) {
+      throw MapDatabaseError(
+          fmt::format("{}: cannot migrate keyframe (session {}, id {}) to schema 3: {}",
+                      path.string(), kf.session, kf.id, reason));
+    }
+    sqlite3_reset(write.get());
+    sqlite3_bind_int64(write.get(), 1, kf.session);
+    sqlite3_bind_int64(write.get(), 2, kf.id);
+    sqlite3_bind_double(write.get(), 3, kf.timestamp);
+    const auto bytes = packed.bytes();
+    write.BindBlob(4, bytes.data(), bytes.size());
+    if (write.Step() != SQLITE_DONE) {
+      throw MapDatabaseError(fmt::format("{}: cannot migrate keyframe (session {}, id {}): {}",
+                                         path.string(), kf.session, kf.id, sqlite3_errmsg(db)));
+    }
+  }
+  if (rc != SQLITE_DONE) {
+    throw MapDatabaseError(path.string() +
+                           ": cannot read keyframes to migrate: " + sqlite3_errmsg(db));
+  }
+}
+
 }  // namespace
 
 void MapDatabaseOptions::Check() const {
@@ -101,16 +243,15 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
     map->Exec("PRAGMA journal_mode=WAL");
     map->Exec(fmt::format("PRAGMA application_id={}", kApplicationId).c_str());
     map->Exec(fmt::format("PRAGMA user_version={}", kSchemaVersion).c_str());
-    map->Exec(
+    const std::string tables_sql =
         "CREATE TABLE sessions(id INTEGER PRIMARY KEY, created_unix REAL NOT NULL, label TEXT);"
-        "CREATE TABLE keyframes(session INTEGER NOT NULL REFERENCES sessions(id),"
-        " id INTEGER NOT NULL, timestamp REAL NOT NULL, pose BLOB NOT NULL,"
-        " num_features INTEGER NOT NULL, descriptors BLOB NOT NULL, keypoints BLOB NOT NULL,"
-        " depths BLOB NOT NULL, focal_px REAL NOT NULL DEFAULT 0,"
-        " has_pose INTEGER NOT NULL DEFAULT 1, PRIMARY KEY(session, id));"
+        "CREATE TABLE keyframes" +
+        std::string(kCreateKeyframesV3) +
+        ";"
         "CREATE TABLE loops(session INTEGER NOT NULL, query INTEGER NOT NULL,"
         " match_session INTEGER NOT NULL, match INTEGER NOT NULL, inliers INTEGER NOT NULL,"
-        " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);");
+        " score REAL NOT NULL, relative BLOB NOT NULL, accepted INTEGER NOT NULL);";
+    map->Exec(tables_sql.c_str());
   } else if (app_id != kApplicationId) {
     throw MapDatabaseError(fmt::format(
         "{}: not a sparseloop map (SQLite application_id {:#x}, expected {:#x})", path.string(),
@@ -124,16 +265,26 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
     throw MapDatabaseError(fmt::format("{}: map schema version {} has no migration to {}",
                                        path.string(), version, kSchemaVersion));
   } else {
-    if (version == 1) {
-      // 1 -> 2: per-keyframe focal length (verification thresholds) and pose flag
-      // (relocalisation). Old keyframes: focal unknown (0), pose present.
-      map->Exec(
-          "BEGIN IMMEDIATE;"
-          "ALTER TABLE keyframes ADD COLUMN focal_px REAL NOT NULL DEFAULT 0;"
-          "ALTER TABLE keyframes ADD COLUMN has_pose INTEGER NOT NULL DEFAULT 1;"
-          "PRAGMA user_version=2;"
-          "COMMIT;");
-      Logger().info("{}: map schema migrated from version 1 to 2", path.string());
+    if (version < 3) {
+      // One transaction for the whole chain: a failure leaves the file at its old version.
+      map->Exec("BEGIN IMMEDIATE");
+      try {
+        if (version == 1) {
+          // 1 -> 2: per-keyframe focal length (verification thresholds) and pose flag
+          // (relocalisation). Old keyframes: focal unknown (0), pose present.
+          map->Exec(
+              "ALTER TABLE keyframes ADD COLUMN focal_px REAL NOT NULL DEFAULT 0;"
+              "ALTER TABLE keyframes ADD COLUMN has_pose INTEGER NOT NULL DEFAULT 1;");
+        }
+        // 2 -> 3: each keyframe's columns become one PackedKeyframe record (quantised).
+        MigrateKeyframesTwoToThree(db, path);
+        map->Exec("PRAGMA user_version=3");
+        map->Exec("COMMIT");
+      } catch (...) {
+        sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+        throw;
+      }
+      Logger().info("{}: map schema migrated from version {} to 3", path.string(), version);
     }
     map->Exec("PRAGMA journal_mode=WAL");
     const int ok =
@@ -220,22 +371,14 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   SL_CHECK_MSG(std::isfinite(kf.timestamp), "keyframe {}: non-finite timestamp", kf.id);
   SL_CHECK_MSG(std::isfinite(kf.focal_px) && kf.focal_px >= 0,
                "keyframe {}: focal_px must be finite and >= 0, got {}", kf.id, kf.focal_px);
+  const PackedKeyframe packed = PackedKeyframe::Pack(ToFields(kf));  // before any write
   BeginIfNeeded();
-  Statement st(db_,
-               "INSERT INTO keyframes(session, id, timestamp, pose, num_features, descriptors,"
-               " keypoints, depths, focal_px, has_pose) VALUES(?,?,?,?,?,?,?,?,?,?)",
-               path_);
-  const auto pose = SimToBlob(kf.raw_world_from_cam);
+  Statement st(db_, "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?,?,?,?)", path_);
   sqlite3_bind_int64(st.get(), 1, kf.session);
   sqlite3_bind_int64(st.get(), 2, kf.id);
   sqlite3_bind_double(st.get(), 3, kf.timestamp);
-  st.BindBlob(4, pose.data(), pose.size() * sizeof(double));
-  sqlite3_bind_int(st.get(), 5, kf.num_features);
-  st.BindBlob(6, kf.descriptors.data(), kf.descriptors.size());
-  st.BindBlob(7, kf.keypoints.data(), kf.keypoints.size() * sizeof(float));
-  st.BindBlob(8, kf.depths.data(), kf.depths.size() * sizeof(float));
-  sqlite3_bind_double(st.get(), 9, kf.focal_px);
-  sqlite3_bind_int(st.get(), 10, kf.has_pose ? 1 : 0);
+  const auto bytes = packed.bytes();
+  st.BindBlob(4, bytes.data(), bytes.size());
   const int rc = st.Step();
   if (rc == SQLITE_CONSTRAINT) {
     // Statement-level rollback: earlier keyframes in this transaction are kept.
@@ -275,35 +418,16 @@ std::vector<StoredKeyframe> ReadKeyframes(sqlite3* db, Statement& st,
   int rc;
   while ((rc = st.Step()) == SQLITE_ROW) {
     sqlite3_stmt* s = st.get();
-    StoredKeyframe kf;
-    kf.session = sqlite3_column_int64(s, 0);
-    kf.id = sqlite3_column_int64(s, 1);
-    kf.timestamp = sqlite3_column_double(s, 2);
-    kf.raw_world_from_cam =
-        SimFromBlob(sqlite3_column_blob(s, 3), sqlite3_column_bytes(s, 3), path);
-    kf.num_features = sqlite3_column_int(s, 4);
-    kf.descriptors = ColumnArray<uint8_t>(s, 5);
-    kf.keypoints = ColumnArray<float>(s, 6);
-    kf.depths = ColumnArray<float>(s, 7);
-    kf.focal_px = static_cast<float>(sqlite3_column_double(s, 8));
-    kf.has_pose = sqlite3_column_int(s, 9) != 0;
-    const size_t n = static_cast<size_t>(std::max(kf.num_features, 0));
-    if (kf.num_features < 0 || kf.descriptors.size() != n * 32 || kf.keypoints.size() != n * 2 ||
-        (!kf.depths.empty() && kf.depths.size() != n) || !std::isfinite(kf.focal_px) ||
-        kf.focal_px < 0) {
-      throw MapDatabaseError(fmt::format("{}: corrupt keyframe record (session {}, id {})",
-                                         path.string(), kf.session, kf.id));
-    }
-    out.push_back(std::move(kf));
+    const int64_t session = sqlite3_column_int64(s, 0);
+    const int64_t id = sqlite3_column_int64(s, 1);
+    out.push_back(FromPacked(RecordFromColumn(s, 2, session, id, path), session));
   }
   if (rc != SQLITE_DONE) {
     throw MapDatabaseError(path.string() + ": cannot read keyframes: " + sqlite3_errmsg(db));
   }
   return out;
 }
-constexpr const char* kSelectKeyframes =
-    "SELECT session, id, timestamp, pose, num_features, descriptors, keypoints, depths,"
-    " focal_px, has_pose FROM keyframes";
+constexpr const char* kSelectKeyframes = "SELECT session, id, record FROM keyframes";
 }  // namespace
 
 std::vector<StoredKeyframe> MapDatabase::LoadKeyframes(int64_t session) const {
@@ -317,6 +441,21 @@ std::vector<StoredKeyframe> MapDatabase::LoadAllKeyframes() const {
   const std::string sql = std::string(kSelectKeyframes) + " ORDER BY session, id";
   Statement st(db_, sql.c_str(), path_);
   return ReadKeyframes(db_, st, path_);
+}
+
+std::vector<uint8_t> MapDatabase::LoadRecordBytes(int64_t session, int64_t id) const {
+  Statement st(db_, "SELECT record FROM keyframes WHERE session=? AND id=?", path_);
+  sqlite3_bind_int64(st.get(), 1, session);
+  sqlite3_bind_int64(st.get(), 2, id);
+  const int rc = st.Step();
+  if (rc != SQLITE_ROW) {
+    throw MapDatabaseError(
+        rc == SQLITE_DONE
+            ? fmt::format("{}: no keyframe (session {}, id {})", path_.string(), session, id)
+            : fmt::format("{}: cannot read keyframe (session {}, id {}): {}", path_.string(),
+                          session, id, sqlite3_errmsg(db_)));
+  }
+  return ColumnArray<uint8_t>(st.get(), 0);
 }
 
 std::vector<StoredLoop> MapDatabase::LoadLoops() const {

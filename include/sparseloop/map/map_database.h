@@ -5,11 +5,14 @@
 //
 // Schema (version kSchemaVersion, checked on open; application_id identifies our files):
 //   sessions(id INTEGER PRIMARY KEY, created_unix REAL, label TEXT)
-//   keyframes(session INTEGER, id INTEGER, timestamp REAL, pose BLOB(8 doubles: qx qy qz qw tx ty
-//   tz s),
-//             num_features INTEGER, descriptors BLOB, keypoints BLOB, depths BLOB,
-//             focal_px REAL, has_pose INTEGER,            (schema 2; a v1 file is migrated
-//             PRIMARY KEY(session, id))                   on open with focal_px 0, has_pose 1)
+//   keyframes(session INTEGER, id INTEGER, timestamp REAL, record BLOB,
+//             PRIMARY KEY(session, id))
+//     record: the exact bytes of a PackedKeyframe (include/sparseloop/core/packed_keyframe.h:
+//     id, timestamp, pose, has_pose, focal_px, descriptors, quantised keypoints and depths), the
+//     same bytes the detector keeps in memory; timestamp is repeated as a column for queries.
+//     Schema 3. Older files are migrated on open in one transaction: schema 1 (no focal_px /
+//     has_pose columns: focal 0, pose present) and schema 2 (one column per field) are packed
+//     row by row, so their floats become the quantised ones.
 //   loops(session INTEGER, query INTEGER, match_session INTEGER, match INTEGER, inliers INTEGER,
 //         score REAL, relative BLOB(8 doubles), accepted INTEGER)
 #include <cstdint>
@@ -71,11 +74,13 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  static constexpr int kSchemaVersion = 2;  // 2: keyframes.focal_px, keyframes.has_pose
+  // 2: keyframes.focal_px, keyframes.has_pose; 3: keyframes.record (one PackedKeyframe blob)
+  static constexpr int kSchemaVersion = 3;
   static constexpr int32_t kApplicationId = 0x534C4D50;  // "SLMP"
 
   // Opens or creates. Throws MapDatabaseError naming the file for a foreign, corrupt or
-  // newer-schema file. A schema-1 file is migrated to schema 2 in place (one transaction).
+  // newer-schema file. A schema-1 or schema-2 file is migrated to schema 3 in place (one
+  // transaction; a keyframe that cannot be packed is a MapDatabaseError and the file is kept).
   static std::unique_ptr<MapDatabase> Open(const std::filesystem::path& path,
                                            const MapDatabaseOptions& options = {});
   ~MapDatabase();
@@ -86,15 +91,20 @@ class MapDatabase {
   int64_t BeginSession(const std::string& label);
   std::vector<int64_t> Sessions() const;
 
-  // Stores a keyframe; throws std::invalid_argument on a duplicate (session, id) or an
-  // inconsistent record (sizes that do not match num_features), leaving the map unchanged.
+  // Stores a keyframe as one PackedKeyframe record (quantised: see packed_keyframe.h); throws
+  // std::invalid_argument on a duplicate (session, id), an inconsistent record (sizes that do not
+  // match num_features) or one that cannot be packed, leaving the map unchanged.
   void PutKeyframe(const StoredKeyframe& keyframe);
   void PutLoop(const StoredLoop& loop);
   // Commits pending writes now (also done by the destructor).
   void Flush();
 
+  // Loaded keyframes hold the record's (quantised) values; a record that does not decode is a
+  // MapDatabaseError naming the file, session, id and reason.
   std::vector<StoredKeyframe> LoadKeyframes(int64_t session) const;  // ordered by id
   std::vector<StoredKeyframe> LoadAllKeyframes() const;              // by session, id
+  // The stored record bytes (PackedKeyframe::bytes()); MapDatabaseError if there is no such row.
+  std::vector<uint8_t> LoadRecordBytes(int64_t session, int64_t id) const;
   std::vector<StoredLoop> LoadLoops() const;
   int64_t CountKeyframes() const;
   const std::filesystem::path& path() const { return path_; }
