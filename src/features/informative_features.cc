@@ -84,6 +84,47 @@ size_t KeyframeRecord::Bytes() const {
          keypoints.capacity() * sizeof(CompactKeypoint) + depths.capacity() * sizeof(float);
 }
 
+PackedKeyframe PackRecord(const KeyframeRecord& r) {
+  SL_CHECK_MSG(r.keypoints.size() == r.descriptors.size(),
+               "keyframe {}: {} keypoints for {} descriptors", r.id, r.keypoints.size(),
+               r.descriptors.size());
+  PackedKeyframe::Fields f;
+  f.id = r.id;
+  f.timestamp = r.timestamp;
+  f.has_pose = r.has_pose;
+  if (r.has_pose) f.world_from_cam = r.world_from_cam;
+  f.focal_px = r.focal_px;
+  f.descriptors = r.descriptors;
+  f.keypoints.reserve(2 * r.keypoints.size());
+  for (const CompactKeypoint& k : r.keypoints) {
+    f.keypoints.push_back(k.x);
+    f.keypoints.push_back(k.y);
+  }
+  f.depths = r.depths;
+  return PackedKeyframe::Pack(f);
+}
+
+KeyframeRecord UnpackRecord(const PackedKeyframe& packed) {
+  KeyframeRecord r;
+  r.id = packed.id();
+  r.timestamp = packed.timestamp();
+  r.has_pose = packed.has_pose();
+  r.world_from_cam = packed.world_from_cam();
+  r.focal_px = packed.focal_px();
+  const auto d = packed.descriptors();
+  r.descriptors.assign(d.begin(), d.end());
+  r.keypoints.resize(packed.size());
+  for (size_t i = 0; i < packed.size(); ++i) {
+    r.keypoints[i].x = packed.keypoint_x(i);
+    r.keypoints[i].y = packed.keypoint_y(i);
+  }
+  if (packed.has_depths()) {
+    r.depths.resize(packed.size());
+    for (size_t i = 0; i < packed.size(); ++i) r.depths[i] = packed.depth(i);
+  }
+  return r;
+}
+
 cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options) {
   options.Check();
   SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");

@@ -15,8 +15,8 @@ void MatchOptions::Check() const {
                "match.ratio must be in (0, 1], got {}", ratio);
 }
 
-std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& query,
-                                              const std::vector<Descriptor>& train,
+std::vector<DescriptorMatch> MatchDescriptors(std::span<const Descriptor> query,
+                                              std::span<const Descriptor> train,
                                               const MatchOptions& options) {
   options.Check();
   std::vector<DescriptorMatch> matches;
@@ -51,8 +51,8 @@ std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& que
   return matches;
 }
 
-std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descriptor>& query,
-                                                  const std::vector<Descriptor>& stored,
+std::vector<DescriptorMatch> MatchStoredIntoQuery(std::span<const Descriptor> query,
+                                                  std::span<const Descriptor> stored,
                                                   const MatchOptions& options) {
   std::vector<DescriptorMatch> matches = MatchDescriptors(stored, query, options);
   for (DescriptorMatch& m : matches) std::swap(m.query, m.train);

@@ -183,6 +183,51 @@ TEST(Features, ExtractKeepsAtMostKAndIsDeterministic) {
   EXPECT_GE(a.Bytes(), sizeof(KeyframeRecord) + 15 * (32 + sizeof(CompactKeypoint)));
 }
 
+TEST(Features, PackedRecordOfAnExtractionFitsIn640BytesAndRoundTrips) {
+  const cv::Mat img = TexturedImage(5);
+  const CameraIntrinsics cam = SmallCamera();
+  std::vector<cv::Point2f> pixels;
+  std::vector<float> depths;
+  for (int y = 20; y < 220; y += 4)
+    for (int x = 20; x < 300; x += 4) {
+      pixels.emplace_back(static_cast<float>(x), static_cast<float>(y));
+      depths.push_back(2.0f + 0.01f * static_cast<float>(x));
+    }
+  FeatureInput in;
+  in.image = &img;
+  in.intrinsics = &cam;
+  in.mapped_pixels = &pixels;
+  in.mapped_depths = &depths;
+  FeatureOptions o;
+  o.max_features = 15;
+  KeyframeRecord r;
+  ExtractInformativeFeatures(in, o, &r);
+  r.id = 7;
+  r.timestamp = 12.5;
+  r.has_pose = true;
+  r.world_from_cam = Sim3d(1.3, Eigen::Quaterniond(0.9, 0.1, -0.3, 0.2).normalized(),
+                           Eigen::Vector3d(40.0, -3.0, 120.0));
+  r.focal_px = 300.0f;
+  ASSERT_EQ(r.size(), 15u);
+  ASSERT_TRUE(r.has_depths());
+  const PackedKeyframe p = PackRecord(r);
+  EXPECT_LE(p.Bytes(), 640u);  // the paper's K with pose, ids, keypoints and depths
+  EXPECT_LT(p.Bytes(), r.Bytes() * 3 / 4);
+  const KeyframeRecord u = UnpackRecord(p);
+  EXPECT_EQ(u.id, r.id);
+  EXPECT_EQ(u.timestamp, r.timestamp);
+  EXPECT_EQ(u.descriptors, r.descriptors);
+  for (size_t i = 0; i < r.size(); ++i) {
+    EXPECT_NEAR(u.keypoints[i].x, r.keypoints[i].x, 1e-4);  // 0.03 px at f = 300
+    EXPECT_NEAR(u.keypoints[i].y, r.keypoints[i].y, 1e-4);
+    EXPECT_NEAR(u.depths[i], r.depths[i], 5e-4 * r.depths[i]);
+  }
+  EXPECT_LT((u.world_from_cam.translation - r.world_from_cam.translation).norm(), 1e-4);
+  const PackedKeyframe again = PackRecord(u);
+  EXPECT_TRUE(
+      std::equal(again.bytes().begin(), again.bytes().end(), p.bytes().begin(), p.bytes().end()));
+}
+
 TEST(Features, MaskRestrictsExtractionArea) {
   const cv::Mat img = TexturedImage(4);
   const CameraIntrinsics cam = SmallCamera();

@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "sparseloop/core/camera.h"
+#include "sparseloop/core/packed_keyframe.h"
 #include "sparseloop/core/sim3.h"
 
 namespace sparseloop {
@@ -59,8 +60,8 @@ struct FeatureOptions {
   void Check() const;
 };
 
-// 256-bit ORB descriptor as four 64-bit words.
-using Descriptor = std::array<uint64_t, 4>;
+// 256-bit ORB descriptor as four 64-bit words (the packed record's type).
+using Descriptor = Descriptor256;
 
 inline int HammingDistance(const Descriptor& a, const Descriptor& b) {
   return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
@@ -96,6 +97,12 @@ struct KeyframeRecord {
   // Real memory held by the record: inline size plus the heap capacity of its vectors, bytes.
   size_t Bytes() const;
 };
+
+// The stored form of a record (core/packed_keyframe.h): one allocation, quantised keypoints,
+// half-precision depths, float pose. ORB angle and octave are not stored (nothing reads them).
+// UnpackRecord(PackRecord(r)) is r quantised, and packing that again gives the same bytes.
+PackedKeyframe PackRecord(const KeyframeRecord& record);
+KeyframeRecord UnpackRecord(const PackedKeyframe& packed);
 
 // Semi-dense high-gradient selection (255 = selected) of an 8-bit grayscale image: gradient
 // magnitude above a per-block adaptive threshold (block median + offset), then dilated.

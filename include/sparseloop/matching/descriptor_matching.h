@@ -1,5 +1,6 @@
 #pragma once
 // Brute-force Hamming matching of two small descriptor sets (K x K popcounts on 64-bit words).
+#include <span>
 #include <vector>
 
 #include "sparseloop/features/informative_features.h"
@@ -20,8 +21,8 @@ struct DescriptorMatch {
 };
 
 // Matches every query descriptor against `train`; result sorted by query index. Deterministic.
-std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& query,
-                                              const std::vector<Descriptor>& train,
+std::vector<DescriptorMatch> MatchDescriptors(std::span<const Descriptor> query,
+                                              std::span<const Descriptor> train,
                                               const MatchOptions& options);
 
 // Asymmetric matching: a small stored set (a record's K descriptors) against a query's whole
@@ -30,9 +31,23 @@ std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& que
 // from a chance one), mutual as in MatchDescriptors. Indices as MatchDescriptors(query, stored)
 // (query = index into `query`, train = index into `stored`), sorted by query index.
 // Deterministic.
-std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descriptor>& query,
-                                                  const std::vector<Descriptor>& stored,
+std::vector<DescriptorMatch> MatchStoredIntoQuery(std::span<const Descriptor> query,
+                                                  std::span<const Descriptor> stored,
                                                   const MatchOptions& options);
+
+// The same on vectors (also braced lists of descriptors).
+inline std::vector<DescriptorMatch> MatchDescriptors(const std::vector<Descriptor>& query,
+                                                     const std::vector<Descriptor>& train,
+                                                     const MatchOptions& options) {
+  return MatchDescriptors(std::span<const Descriptor>(query), std::span<const Descriptor>(train),
+                          options);
+}
+inline std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descriptor>& query,
+                                                         const std::vector<Descriptor>& stored,
+                                                         const MatchOptions& options) {
+  return MatchStoredIntoQuery(std::span<const Descriptor>(query),
+                              std::span<const Descriptor>(stored), options);
+}
 
 // Score of a match set: sum over matches of (max_distance + 1 - distance) / (max_distance + 1).
 double MatchScore(const std::vector<DescriptorMatch>& matches, int max_distance);
