@@ -48,7 +48,9 @@ PackedKeyframe::Fields ToFields(const StoredKeyframe& kf) {
   if (kf.has_pose) f.world_from_cam = kf.raw_world_from_cam;
   f.focal_px = kf.focal_px;
   f.descriptors.resize(static_cast<size_t>(kf.num_features));
-  std::memcpy(f.descriptors.data(), kf.descriptors.data(), kf.descriptors.size());
+  if (!kf.descriptors.empty()) {
+    std::memcpy(f.descriptors.data(), kf.descriptors.data(), kf.descriptors.size());
+  }
   f.keypoints = kf.keypoints;
   f.depths = kf.depths;
   return f;
@@ -66,7 +68,9 @@ StoredKeyframe Quantised(const StoredKeyframe& kf) {
   q.focal_px = f.focal_px;
   q.num_features = static_cast<int>(f.descriptors.size());
   q.descriptors.resize(f.descriptors.size() * 32);
-  std::memcpy(q.descriptors.data(), f.descriptors.data(), q.descriptors.size());
+  if (!q.descriptors.empty()) {
+    std::memcpy(q.descriptors.data(), f.descriptors.data(), q.descriptors.size());
+  }
   q.keypoints = f.keypoints;
   q.depths = f.depths;
   return q;
