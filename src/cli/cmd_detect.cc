@@ -130,7 +130,7 @@ int RunDetect(int argc, char** argv) {
     input.intrinsics = dataset.intrinsics;
     if (have_poses) input.world_from_cam = Sim3d(raw->poses[i].world_from_cam);
     const LoopResult r = detector.Process(input);
-    bytes += detector.record(frame.index).Bytes();
+    bytes += detector.packed_record(frame.index).Bytes();
     if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), map_session));
     if (map && r.detected()) {
       map->PutLoop({map_session, r.query_id, r.match_session == 0 ? map_session : r.match_session,

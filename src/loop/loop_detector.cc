@@ -147,10 +147,18 @@ LoopDetector::LoopDetector(Options options)
   if (options_.retrieval == CandidateRetrieval::kAnn) ann_.emplace(options_.ann);
 }
 
-const KeyframeRecord& LoopDetector::record(int64_t id) const {
+const PackedKeyframe& LoopDetector::packed_record(int64_t id) const {
   auto it = index_of_.find(id);
   SL_CHECK_MSG(it != index_of_.end(), "unknown keyframe id {}", id);
   return records_[it->second];
+}
+
+KeyframeRecord LoopDetector::record(int64_t id) const { return UnpackRecord(packed_record(id)); }
+
+const KeyframeRecord& LoopDetector::Unpacked(const PackedKeyframe& packed) const {
+  auto it = unpacked_.find(&packed);
+  if (it == unpacked_.end()) it = unpacked_.emplace(&packed, UnpackRecord(packed)).first;
+  return it->second;
 }
 
 size_t LoopDetector::StoredBytes() const {
@@ -167,9 +175,9 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   // exactly as it was (docs/ROBUSTNESS.md).
   SL_CHECK_MSG(!index_of_.count(input.id), "keyframe id {} was already processed", input.id);
   SL_CHECK_MSG(std::isfinite(input.timestamp), "keyframe {}: timestamp is not finite", input.id);
-  SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp,
+  SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp(),
                "keyframe {}: timestamp {} must increase (previous keyframe: {})", input.id,
-               input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp);
+               input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp());
   ValidateImageInput(input);
   if (input.world_from_cam) {
     const Sim3d& pose = *input.world_from_cam;
@@ -195,29 +203,32 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   KeyframeRecord full = ExtractRecord(input);
   full.has_pose = input.world_from_cam.has_value();
   if (full.has_pose) full.world_from_cam = *input.world_from_cam;
-  KeyframeRecord rec = StoredSubset(full, StoredOrder(full), options_.features.max_features);
+  PackedKeyframe rec =
+      PackRecord(StoredSubset(full, StoredOrder(full), options_.features.max_features));
   if (options_.repeatability_window > 0) {
     recent_.push_back(full.descriptors);
     if (recent_.size() > static_cast<size_t>(options_.repeatability_window)) recent_.pop_front();
   }
   result.timings.extract_ms = stage.ElapsedMs();
 
-  // 2. Store.
+  // 2. Store (packed: the stored pose, keypoints and depths are the quantised ones from here on,
+  // the same after a round trip through the map).
+  unpacked_.clear();
   const size_t index = records_.size();
+  const Eigen::Vector3d position =
+      rec.has_pose() ? rec.world_from_cam().translation : Eigen::Vector3d::Zero();
   double path = 0.0;
   if (index > 0) {
     path = path_length_.back();
-    const auto& prev = records_.back();
-    if (prev.has_pose && rec.has_pose)
-      path += (rec.world_from_cam.translation - prev.world_from_cam.translation).norm();
+    const PackedKeyframe& prev = records_.back();
+    if (prev.has_pose() && rec.has_pose())
+      path += (position - prev.world_from_cam().translation).norm();
   }
-  const Eigen::Vector3d position =
-      rec.has_pose ? rec.world_from_cam.translation : Eigen::Vector3d::Zero();
-  any_pose_ |= rec.has_pose;
-  any_missing_pose_ |= !rec.has_pose;
-  index_of_[rec.id] = index;
+  any_pose_ |= rec.has_pose();
+  any_missing_pose_ |= !rec.has_pose();
+  index_of_[rec.id()] = index;
   path_length_.push_back(path);
-  if (!relocalize) search_.Add(rec.id, position);  // no place on the trajectory without a pose
+  if (!relocalize) search_.Add(rec.id(), position);  // no place on the trajectory without a pose
   records_.push_back(std::move(rec));
   const KeyframeRecord& query = full;
 
@@ -228,9 +239,9 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     } else {
       std::vector<PoolEntry> pool;
       for (size_t i = 0; i + 1 < records_.size(); ++i)
-        if (records_[i].has_pose) pool.push_back({0, &records_[i]});
+        if (records_[i].has_pose()) pool.push_back({0, &records_[i]});
       for (size_t i = 0; i < prior_records_.size(); ++i)
-        if (prior_records_[i].has_pose) pool.push_back({prior_session_[i], &prior_records_[i]});
+        if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
       MatchAndVerifyPool(query, pool, &result);
     }
     result.timings.total_ms = total.ElapsedMs();
@@ -253,9 +264,9 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   const SearchAreaResult area = search_.Query(query.id);
   // Path between record ci and the query >= min_path_ratio x their distance (or unmeasurable).
   auto far_along = [&](size_t ci) {
-    const KeyframeRecord& c = records_[ci];
-    if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose) return true;
-    const double chord = (query.world_from_cam.translation - c.world_from_cam.translation).norm();
+    const PackedKeyframe& c = records_[ci];
+    if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose()) return true;
+    const double chord = (query.world_from_cam.translation - c.world_from_cam().translation).norm();
     return path_length_[index] - path_length_[ci] >= options_.min_path_ratio * chord;
   };
   std::vector<int64_t> candidates;
@@ -290,9 +301,10 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
     std::vector<int64_t> others;
     for (size_t ci = 0; ci + exclude < index; ++ci) {
-      const KeyframeRecord& c = records_[ci];
-      if (c.has_pose && far_along(ci) && !std::binary_search(in_area.begin(), in_area.end(), c.id))
-        others.push_back(c.id);
+      const PackedKeyframe& c = records_[ci];
+      if (c.has_pose() && far_along(ci) &&
+          !std::binary_search(in_area.begin(), in_area.end(), c.id()))
+        others.push_back(c.id());
     }
     const double fallback_search_ms = stage.ElapsedMs();
     LoopResult fallback;
@@ -308,7 +320,7 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     }
   }
   if (result.detected()) {
-    SetWorldFromQuery(records_[index_of_.at(result.match_id)], &result);
+    SetWorldFromQuery(Stored(index_of_.at(result.match_id)), &result);
   } else if (options_.search_prior_sessions && !prior_records_.empty()) {
     // Earlier sessions, by appearance only (their world frame is not ours).
     std::vector<PoolEntry> pool;
@@ -359,20 +371,24 @@ void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord
                    session, r.id);
     }
   }
+  unpacked_.clear();  // prior_records_ may move
+  std::vector<PackedKeyframe> packed;
+  packed.reserve(records.size());
+  for (const auto& r : records) packed.push_back(PackRecord(r));
   prior_index_[session] = std::move(index);
-  prior_records_.reserve(prior_records_.size() + records.size());
-  for (auto& r : records) {
+  prior_records_.reserve(prior_records_.size() + packed.size());
+  for (auto& r : packed) {
     prior_records_.push_back(std::move(r));
     prior_session_.push_back(session);
   }
 }
 
-const KeyframeRecord& LoopDetector::prior_record(int64_t session, int64_t id) const {
+KeyframeRecord LoopDetector::prior_record(int64_t session, int64_t id) const {
   auto s = prior_index_.find(session);
   SL_CHECK_MSG(s != prior_index_.end(), "unknown prior session {}", session);
   auto it = s->second.find(id);
   SL_CHECK_MSG(it != s->second.end(), "unknown keyframe id {} in prior session {}", id, session);
-  return prior_records_[it->second];
+  return UnpackRecord(prior_records_[it->second]);
 }
 
 void LoopDetector::ValidateImageInput(const KeyframeInput& input) const {
@@ -434,10 +450,10 @@ std::vector<int> LoopDetector::StoredOrder(const KeyframeRecord& full) const {
 }
 
 std::vector<DescriptorMatch> LoopDetector::MatchQuery(const KeyframeRecord& query,
-                                                      const KeyframeRecord& stored) const {
+                                                      std::span<const Descriptor> stored) const {
   if (options_.asymmetric_matching && query.size() > stored.size())
-    return MatchStoredIntoQuery(query.descriptors, stored.descriptors, options_.match);
-  return MatchDescriptors(query.descriptors, stored.descriptors, options_.match);
+    return MatchStoredIntoQuery(query.descriptors, stored, options_.match);
+  return MatchDescriptors(query.descriptors, stored, options_.match);
 }
 
 LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
@@ -446,6 +462,7 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   LoopResult result;
   result.query_id = input.id;
   result.relocalization = true;
+  unpacked_.clear();
   Timer stage;
   KeyframeRecord rec = ExtractRecord(input);
   result.timings.extract_ms = stage.ElapsedMs();
@@ -454,9 +471,9 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   } else {
     std::vector<PoolEntry> pool;
     for (const auto& r : records_)
-      if (r.has_pose) pool.push_back({0, &r});
+      if (r.has_pose()) pool.push_back({0, &r});
     for (size_t i = 0; i < prior_records_.size(); ++i)
-      if (prior_records_[i].has_pose) pool.push_back({prior_session_[i], &prior_records_[i]});
+      if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
     MatchAndVerifyPool(rec, pool, &result);
   }
   result.timings.total_ms = total.ElapsedMs();
@@ -523,14 +540,14 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   }
   Timer stage;
   const CandidateRanking ranking = RankCandidates(
-      pool.size(), [&](size_t e) -> const KeyframeRecord& { return *pool[e].record; },
-      [](size_t e) { return e; }, [&](const KeyframeRecord& r) { return MatchQuery(query, r); },
+      pool.size(), [&](size_t e) -> const PackedKeyframe& { return *pool[e].record; },
+      [](size_t e) { return e; }, [&](const PackedKeyframe& r) { return MatchQuery(query, r); },
       options_.EffectiveMinMatches(), options_.match.max_distance);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms += stage.ElapsedMs();
   if (ranked.empty()) {
     result->status = LoopStatus::kTooFewMatches;
-    result->match_id = pool[ranking.best_entry].record->id;
+    result->match_id = pool[ranking.best_entry].record->id();
     result->match_session = pool[ranking.best_entry].session;
     result->matches = ranking.best_count;
     return;
@@ -542,9 +559,10 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   for (int r = 0; r < n_verify; ++r) {
     const RankedCandidate& cand = ranked[r];
     const PoolEntry& entry = pool[cand.entry];
-    VerificationResult v = VerifyPair(query, *entry.record, cand.matches, verify_);
+    const KeyframeRecord& match = Unpacked(*entry.record);
+    VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
     if (have_best && !v.success && v.inliers <= result->inliers) continue;
-    result->match_id = entry.record->id;
+    result->match_id = match.id;
     result->match_session = entry.session;
     result->matches = static_cast<int>(cand.matches.size());
     result->inliers = v.inliers;
@@ -555,7 +573,7 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
     result->status = v.success ? LoopStatus::kDetected : LoopStatus::kTooFewInliers;
     have_best = true;
     if (v.success) {
-      SetWorldFromQuery(*entry.record, result);
+      SetWorldFromQuery(match, result);
       break;
     }
   }
@@ -615,13 +633,13 @@ void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeReco
 VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
                                                        size_t match_index, int* map_points) const {
   const Options::LocalMapOptions& lm = options_.local_map;
-  const KeyframeRecord& match = records_[match_index];
+  const KeyframeRecord& match = Stored(match_index);
   // Only keyframes well before the query: the map must not contain the query's own stretch.
   const size_t query_index = index_of_.at(query.id);
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
   const size_t end = query_index > exclude ? query_index - exclude : 0;
   auto usable = [&](int64_t i) {
-    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose;
+    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose();
   };
   // The map, in the match camera's frame: every window keyframe's triangulated keypoints as
   // points (bearing + depth) of one virtual record, with their own descriptors.
@@ -637,11 +655,11 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   const int64_t mi = static_cast<int64_t>(match_index);
   for (int64_t w = mi - lm.window; w <= mi + lm.window; ++w) {
     if (!usable(w)) continue;
-    const KeyframeRecord& kf = records_[static_cast<size_t>(w)];
+    const KeyframeRecord& kf = Stored(static_cast<size_t>(w));
     std::vector<const KeyframeRecord*> neighbours;
     for (int64_t k = 1; k <= lm.neighbours; ++k) {
-      if (usable(w + k)) neighbours.push_back(&records_[static_cast<size_t>(w + k)]);
-      if (usable(w - k)) neighbours.push_back(&records_[static_cast<size_t>(w - k)]);
+      if (usable(w + k)) neighbours.push_back(&Stored(static_cast<size_t>(w + k)));
+      if (usable(w - k)) neighbours.push_back(&Stored(static_cast<size_t>(w - k)));
     }
     const TriangulationResult tri = TriangulateFromNeighbours(kf, neighbours, lm.triangulation);
     if (tri.triangulated == 0) continue;
@@ -663,7 +681,7 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     }
     // Matched per keyframe (the ratio test within one keyframe; the same point seen from two map
     // keyframes would fail it across them), then the closest descriptor per query keypoint.
-    for (const DescriptorMatch& m : MatchQuery(query, kf)) {
+    for (const DescriptorMatch& m : MatchQuery(query, kf.descriptors)) {
       if (map_index[m.train] < 0 || m.distance >= best_distance[m.query]) continue;
       best_distance[m.query] = m.distance;
       const DescriptorMatch dm{m.query, map_index[m.train], m.distance};
@@ -690,8 +708,8 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     std::vector<const KeyframeRecord*> before;
     for (int64_t k = 1; k <= lm.neighbours; ++k) {
       const int64_t i = static_cast<int64_t>(query_index) - k;
-      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose)
-        before.push_back(&records_[static_cast<size_t>(i)]);
+      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose())
+        before.push_back(&Stored(static_cast<size_t>(i)));
     }
     const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
     if (tri.triangulated > 0) q.depths = tri.depths;
@@ -712,7 +730,7 @@ bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query
     if (k <= match_index || k >= query_index) continue;
     const std::vector<DescriptorMatch> matches = MatchQuery(query, records_[k]);
     if (static_cast<int>(matches.size()) < inliers) continue;  // cannot reach `inliers`
-    const VerificationResult v = VerifyPair(query, records_[k], matches, verify);
+    const VerificationResult v = VerifyPair(query, Stored(k), matches, verify);
     if (v.success && v.inliers >= inliers) return true;
   }
   return false;
@@ -749,16 +767,14 @@ bool LoopDetector::Agrees(size_t query_index, size_t match_index) const {
 LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
                                                            size_t match_index) const {
   auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
-  auto rotation = [&](size_t i) -> const Eigen::Quaterniond& {
-    return records_[i].world_from_cam.rotation;
-  };
+  auto rotation = [&](size_t i) { return records_[i].world_from_cam().rotation; };
   // a_from_b of the raw rotations.
   auto raw = [&](size_t a, size_t b) { return rotation(a).conjugate() * rotation(b); };
   GraphPrior best;
   best.keyframes = dist(query_index, match_index);
   best.match_from_query = raw(match_index, query_index);
   for (const AcceptedLoop& l : accepted_loops_) {
-    if (!records_[l.query].has_pose || !records_[l.match].has_pose) continue;
+    if (!records_[l.query].has_pose() || !records_[l.match].has_pose()) continue;
     // query ~ loop query, match ~ loop match; or the loop used the other way round.
     const size_t forward = dist(query_index, l.query) + dist(l.match, match_index);
     const size_t backward = dist(query_index, l.match) + dist(l.query, match_index);
@@ -783,13 +799,15 @@ std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, 
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
   const size_t eligible = query_index > exclude ? query_index - exclude : 0;
   for (; ann_indexed_ < eligible; ++ann_indexed_)
-    ann_->Add(static_cast<int64_t>(ann_indexed_), records_[ann_indexed_].descriptors);
+    ann_->Add(static_cast<int64_t>(ann_indexed_),
+              std::vector<Descriptor>(records_[ann_indexed_].descriptors().begin(),
+                                      records_[ann_indexed_].descriptors().end()));
   if (allowed.empty()) return {};
   std::vector<int64_t> allowed_sorted = allowed;
   std::sort(allowed_sorted.begin(), allowed_sorted.end());
   std::vector<int64_t> out;
   for (const KeyframeVotes& v : ann_->Query(query.descriptors)) {
-    const int64_t id = records_[static_cast<size_t>(v.keyframe_id)].id;
+    const int64_t id = records_[static_cast<size_t>(v.keyframe_id)].id();
     if (!std::binary_search(allowed_sorted.begin(), allowed_sorted.end(), id)) continue;
     out.push_back(id);
     if (static_cast<int>(out.size()) >= options_.ann.max_candidates) break;
@@ -800,6 +818,7 @@ std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, 
 LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
                                       const std::vector<int64_t>& candidate_ids) {
   Timer total;
+  unpacked_.clear();
   LoopResult result;
   result.query_id = query.id;
   SearchAndVerify(query, candidate_ids, &result);
@@ -823,9 +842,9 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   for (size_t e = 0; e < candidates.size(); ++e) record_index[e] = index_of_.at(candidates[e]);
   const CandidateRanking ranking = RankCandidates(
       candidates.size(),
-      [&](size_t e) -> const KeyframeRecord& { return records_[record_index[e]]; },
+      [&](size_t e) -> const PackedKeyframe& { return records_[record_index[e]]; },
       [&](size_t e) { return record_index[e]; },
-      [&](const KeyframeRecord& r) { return MatchQuery(query, r); },
+      [&](const PackedKeyframe& r) { return MatchQuery(query, r); },
       weak_enabled ? std::min(options_.EffectiveMinMatches(), options_.weak_min_inliers)
                    : options_.EffectiveMinMatches(),
       options_.match.max_distance);
@@ -848,7 +867,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   for (int r = 0; r < n_verify; ++r) {
     const auto& cand = ranked[r];
     const size_t match_index = record_index[cand.entry];
-    const KeyframeRecord& match = records_[match_index];
+    const KeyframeRecord& match = Stored(match_index);
     VerificationResult v = VerifyPair(query, match, cand.matches, verify);
     int map_points = 0, map_inliers = 0;
     if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&

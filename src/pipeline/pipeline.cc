@@ -220,9 +220,8 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
     LoopResult r = detector.Process(input);
     keyframe_rows.push_back(i);
     result.keyframe_frames.push_back(frame.index);
-    const KeyframeRecord& record = detector.record(frame.index);
-    bytes += record.Bytes();
-    if (map) map->PutKeyframe(ToStoredKeyframe(record, session));
+    bytes += detector.packed_record(frame.index).Bytes();
+    if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), session));
     if (r.detected())
       (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
     result.frame_results.push_back(std::move(r));

@@ -139,8 +139,12 @@ TEST(LoopDetector, RevisitDetectedUnrelatedNot) {
   EXPECT_LE(revisit.score, 1.0);
   EXPECT_GE(revisit.timings.total_ms, revisit.timings.extract_ms);
   EXPECT_EQ(detector.num_keyframes(), 3u);
-  EXPECT_EQ(detector.StoredBytes(), detector.record(10).Bytes() + detector.record(11).Bytes() +
-                                        detector.record(12).Bytes());
+  EXPECT_EQ(detector.StoredBytes(), detector.packed_record(10).Bytes() +
+                                        detector.packed_record(11).Bytes() +
+                                        detector.packed_record(12).Bytes());
+  // The stored record is the packed one: unpacking and packing it again gives its bytes.
+  const PackedKeyframe again = PackRecord(detector.record(12));
+  EXPECT_TRUE(std::ranges::equal(again.bytes(), detector.packed_record(12).bytes()));
   EXPECT_THROW(detector.record(99), std::invalid_argument);
 }
 

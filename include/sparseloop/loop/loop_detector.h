@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -311,8 +312,12 @@ class LoopDetector {
 
   const Options& options() const { return options_; }
   size_t num_keyframes() const { return records_.size(); }
-  const KeyframeRecord& record(int64_t id) const;
-  // Sum of KeyframeRecord::Bytes() over the stored keyframes.
+  // The stored record of keyframe `id`, unpacked (its values as stored: quantised, see
+  // core/packed_keyframe.h).
+  KeyframeRecord record(int64_t id) const;
+  // The stored bytes of keyframe `id` (what a map stores for it).
+  const PackedKeyframe& packed_record(int64_t id) const;
+  // Sum of PackedKeyframe::Bytes() over the stored keyframes.
   size_t StoredBytes() const;
   // Memory of the ANN retrieval index (0 unless retrieval == kAnn), bytes; not in StoredBytes().
   size_t RetrievalIndexBytes() const { return ann_ ? ann_->Bytes() : 0; }
@@ -327,7 +332,7 @@ class LoopDetector {
   // added) on a bad session id or record.
   void AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records);
   size_t num_prior_keyframes() const { return prior_records_.size(); }
-  const KeyframeRecord& prior_record(int64_t session, int64_t id) const;
+  KeyframeRecord prior_record(int64_t session, int64_t id) const;
 
   // Relocalisation: extracts the input's features and matches them against every stored keyframe
   // that has a pose (this session and all prior sessions), with geometric verification and no
@@ -346,7 +351,7 @@ class LoopDetector {
   // state is read or changed). Used for prior sessions and relocalisation.
   struct PoolEntry {
     int64_t session;  // 0 = current
-    const KeyframeRecord* record;
+    const PackedKeyframe* record;
   };
   void MatchAndVerifyPool(const KeyframeRecord& query, const std::vector<PoolEntry>& pool,
                           LoopResult* result) const;
@@ -365,7 +370,16 @@ class LoopDetector {
   // Descriptor matches of a query record against a stored one (asymmetric: MatchStoredIntoQuery
   // when the query holds more features, else MatchDescriptors).
   std::vector<DescriptorMatch> MatchQuery(const KeyframeRecord& query,
-                                          const KeyframeRecord& stored) const;
+                                          std::span<const Descriptor> stored) const;
+  std::vector<DescriptorMatch> MatchQuery(const KeyframeRecord& query,
+                                          const PackedKeyframe& stored) const {
+    return MatchQuery(query, stored.descriptors());
+  }
+  // A stored record unpacked for verification (keypoints, depths), cached for the current
+  // Process / Relocalize / MatchAgainst call (the cache is cleared when the next one starts).
+  const KeyframeRecord& Unpacked(const PackedKeyframe& packed) const;
+  const KeyframeRecord& Stored(size_t index) const { return Unpacked(records_[index]); }
+  mutable std::unordered_map<const PackedKeyframe*, KeyframeRecord> unpacked_;
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size
@@ -379,8 +393,8 @@ class LoopDetector {
   Options options_;
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
   SearchArea search_;
-  std::vector<KeyframeRecord> records_;
-  std::vector<double> path_length_;  // cumulative path length at each keyframe (pose units)
+  std::vector<PackedKeyframe> records_;  // the stored keyframes, packed (one allocation each)
+  std::vector<double> path_length_;      // cumulative path length at each keyframe (pose units)
   std::unordered_map<int64_t, size_t> index_of_;
   // The index below which keyframes no longer share the scene with the query (Options::
   // overlap_gap), for a query without a pose; `exclude_end` = first index excluded by
@@ -419,7 +433,7 @@ class LoopDetector {
   std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
   size_t ann_indexed_ = 0;             // records_[0, ann_indexed_) are in ann_
   // Earlier sessions (AddPriorKeyframes), searched by appearance only.
-  std::vector<KeyframeRecord> prior_records_;
+  std::vector<PackedKeyframe> prior_records_;
   std::vector<int64_t> prior_session_;  // session of each prior record
   std::unordered_map<int64_t, std::unordered_map<int64_t, size_t>> prior_index_;  // session, id
 };

@@ -61,7 +61,7 @@ struct PipelineResult {
   PoseGraphSummary optimizer;
   Trajectory raw;                   // raw poses matched to the dataset's frames
   Trajectory corrected;             // same frames, corrected
-  double bytes_per_keyframe = 0.0;  // mean KeyframeRecord::Bytes() of the stored keyframes
+  double bytes_per_keyframe = 0.0;  // mean PackedKeyframe::Bytes() of the stored keyframes
   double detect_seconds = 0.0;      // wall time of the detection loop (image decode included)
 };
 
