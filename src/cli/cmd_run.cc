@@ -154,6 +154,8 @@ int RunRun(int argc, char** argv) {
                           {"initial_cost", result.optimizer.initial_cost},
                           {"final_cost", result.optimizer.final_cost},
                           {"iterations", result.optimizer.iterations},
+                          {"solves", result.optimizer.solves},
+                          {"loop_weight_scale", result.optimizer.loop_weight_scale},
                           {"solve_seconds", result.optimizer.solve_seconds},
                           {"rejection_seconds", result.optimizer.rejection_seconds},
                           {"vertices", result.optimizer.num_vertices},

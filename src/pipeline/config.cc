@@ -403,6 +403,10 @@ void AddOptimizerKeys(KeyList& k) {
         "edges per composed chain (>= 1)");
   k.Add(p + "log_progress", SL_FIELD(optimizer.log_progress), "",
         "log every iteration (through the logger, never stdout)");
+  k.Add(p + "loop_weight_rounds", SL_FIELD(optimizer.loop_weight_rounds), "solves",
+        "re-solves with heavier kept loops while one is inconsistent (>= 0; 0: off)");
+  k.Add(p + "max_loop_weight_scale", SL_FIELD(optimizer.max_loop_weight_scale), "",
+        "largest factor on the kept loops' information (>= 1)");
 }
 
 void AddGraphKeys(KeyList& k) {

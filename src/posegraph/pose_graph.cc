@@ -181,6 +181,10 @@ void PoseGraphOptions::Check() const {
                "switch_reject_below must be in [0,1]");
   SL_CHECK_MSG(num_threads >= 1, "num_threads must be >= 1, got {}", num_threads);
   SL_CHECK_MSG(max_chain_length >= 1, "max_chain_length must be >= 1, got {}", max_chain_length);
+  SL_CHECK_MSG(loop_weight_rounds >= 0, "loop_weight_rounds must be >= 0, got {}",
+               loop_weight_rounds);
+  SL_CHECK_MSG(max_loop_weight_scale >= 1, "max_loop_weight_scale must be >= 1, got {}",
+               max_loop_weight_scale);
   pcm.Check();
 }
 
@@ -420,9 +424,47 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
     for (size_t i : PcmConsistentLoopsIncremental(options.pcm)) use_loop[i] = true;
     summary.rejection_seconds = timer.ElapsedMs() / 1000.0;
   }
-  const bool switchable = UsesSwitches(options);
 
-  // 2. The Ceres problem over the stored parameter blocks (only the kept ones when chains are
+  // 2.-3. Solve; repeated with heavier loops while a kept loop stays inconsistent (see
+  //        PoseGraphOptions::loop_weight_rounds).
+  double loop_scale = 1.0;
+  SolveOnce(options, use_loop, loop_scale, interrupt, &summary);
+  for (int round = 0; round < options.loop_weight_rounds; ++round) {
+    if (summary.status == PoseGraphStatus::kFailed ||
+        summary.status == PoseGraphStatus::kInterrupted)
+      break;
+    double worst = 0.0;
+    for (const LoopResidualCheck& c : summary.loop_checks)
+      if (!c.consistent && c.threshold > 0) worst = std::max(worst, c.chi2 / c.threshold);
+    if (worst <= 1.0 || loop_scale >= options.max_loop_weight_scale) break;
+    loop_scale = std::min(options.max_loop_weight_scale, loop_scale * std::max(2.0, worst));
+    PoseGraphSummary again;
+    again.num_vertices = summary.num_vertices;
+    again.num_edges = summary.num_edges;
+    again.num_loops = summary.num_loops;
+    again.rejection_seconds = summary.rejection_seconds;
+    SolveOnce(options, use_loop, loop_scale, interrupt, &again);
+    again.initial_cost = summary.initial_cost;
+    again.iterations += summary.iterations;
+    again.solve_seconds += summary.solve_seconds;
+    again.solves = summary.solves + 1;
+    again.loop_weight_scale = loop_scale;
+    summary = std::move(again);
+  }
+  if (summary.loop_weight_scale > 1.0)
+    Logger().info(
+        "pose graph: kept loops weighted x{:.3g} ({} solves) so that the graph satisfies "
+        "them; the odometry model was tighter than the drift",
+        summary.loop_weight_scale, summary.solves);
+  return summary;
+}
+
+void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                          double loop_scale, const std::atomic<bool>* interrupt,
+                          PoseGraphSummary* out) {
+  PoseGraphSummary& summary = *out;
+  const bool switchable = UsesSwitches(options);
+  // The Ceres problem over the stored parameter blocks (only the kept ones when chains are
   //    reduced; see chain_reduction.h).
   Timer reduction_timer;
   const bool reduce = options.reduce_chains && type_ == VertexType::kSim3;
@@ -475,7 +517,8 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
   for (size_t k = 0; k < loops_.size(); ++k) {
     if (!use_loop[k]) continue;
     const LoopConstraint& loop = loops_[k];
-    const Matrix7d sqrt_info = SqrtInformation(LoopEffectiveInformation(loop));
+    const Matrix7d sqrt_info =
+        std::sqrt(loop_scale) * SqrtInformation(LoopEffectiveInformation(loop));
     double* match = params_[Index(loop.match_id)].data();
     double* query = params_[Index(loop.query_id)].data();
     if (switchable) {
@@ -562,7 +605,6 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
       summary.loop_checks.push_back(CheckLoop(k, options.pcm.confidence));
     }
   }
-  return summary;
 }
 
 Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {

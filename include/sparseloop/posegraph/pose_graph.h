@@ -128,6 +128,14 @@ struct PoseGraphOptions {
   bool reduce_chains = true;
   int max_chain_length = 8;   // edges per composed chain
   bool log_progress = false;  // per-iteration log through Logger() (never stdout)
+  // When a loop PCM kept is left inconsistent by the solve (LoopResidualCheck: chi2 above its
+  // quantile), the odometry claimed more than it knows (its sigmas are a model, the loop's come
+  // from its own inliers): the solve is repeated, warm, with every kept loop's information
+  // multiplied by max(2, max over loops of chi2 / threshold) (at most max_loop_weight_scale in
+  // all), up to loop_weight_rounds more times, until every kept loop is consistent. 0 rounds:
+  // off. The factor applies to the solve only: PCM and the checks use the loops' own information.
+  int loop_weight_rounds = 4;
+  double max_loop_weight_scale = 1e4;
   void Check() const;
 };
 
@@ -175,6 +183,10 @@ struct PoseGraphSummary {
   std::vector<LoopPair> rejected_loop_ids;  // {query_id, match_id} of each rejected loop
   // One per loop used in the solve (not rejected), in loops() order; see LoopResidualCheck.
   std::vector<LoopResidualCheck> loop_checks;
+  // The factor the kept loops' information was multiplied by in the final solve
+  // (PoseGraphOptions::loop_weight_rounds; 1 = their own information), and the solves it took.
+  double loop_weight_scale = 1.0;
+  int solves = 1;
   std::string ceres_message;
   std::string BriefReport() const;
 };
@@ -230,6 +242,10 @@ class PoseGraph {
   LoopResidualCheck CheckLoop(size_t index, double confidence) const;
 
  private:
+  // One solve of Optimize: the kept loops (use_loop) with their information x loop_scale; fills
+  // the solve fields of *summary (costs, status, timings, rejected loops, loop checks).
+  void SolveOnce(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                 double loop_scale, const std::atomic<bool>* interrupt, PoseGraphSummary* summary);
   size_t Index(int64_t id) const;
   // 0.5 * sum of (robustified) squared residuals of every edge and every used loop at the current
   // estimates (Sim(3) residuals; used when the solved problem is the reduced one).
