@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -276,6 +277,43 @@ PackedKeyframe PackedKeyframe::FromBytes(std::span<const uint8_t> bytes) {
     const Sim3d pose = out.world_from_cam();
     SL_CHECK_MSG(pose.translation.allFinite() && std::isfinite(pose.scale) && pose.scale > 0,
                  "packed keyframe {}: pose is not finite or its scale is not positive", out.id());
+    // Three components of a unit quaternion: their squares sum to at most 1 (Pack writes at most
+    // about 3/4, the largest component being at least as large as each).
+    double sum = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      const double q = Load<int16_t>(d + kOffRotation + 2 * i) * kRotationStep;
+      sum += q * q;
+    }
+    SL_CHECK_MSG(sum <= 1.0,
+                 "packed keyframe {}: rotation code is not three components of a unit quaternion",
+                 out.id());
+  }
+  // Pack writes exponents in [kMinExponent, kMaxExponent] and non-negative finite depths; even
+  // inside that range an exponent byte can push a coordinate or a depth past float's range.
+  for (const size_t offset : {kOffKeypointExp, kOffDepthExp}) {
+    const int e = static_cast<int8_t>(d[offset]);
+    SL_CHECK_MSG(e >= kMinExponent && e <= kMaxExponent,
+                 "packed keyframe {}: {} exponent {} outside [{}, {}]", out.id(),
+                 offset == kOffKeypointExp ? "keypoint" : "depth", e, kMinExponent, kMaxExponent);
+  }
+  const uint8_t* codes = d + kHeaderBytes + out.size() * 32;
+  for (size_t i = 0; i < out.size(); ++i) {
+    SL_CHECK_MSG(std::isfinite(out.keypoint_x(i)) && std::isfinite(out.keypoint_y(i)),
+                 "packed keyframe {}: keypoint {} is not finite", out.id(), i);
+    SL_CHECK_MSG(
+        Load<int16_t>(codes + 4 * i) != INT16_MIN && Load<int16_t>(codes + 4 * i + 2) != INT16_MIN,
+        "packed keyframe {}: keypoint {} has code -32768 (Pack writes +-32767 at most)", out.id(),
+        i);
+    const float depth = out.depth(i);
+    SL_CHECK_MSG(std::isfinite(depth) && depth >= 0.0f,
+                 "packed keyframe {}: depth {} is not finite or negative", out.id(), i);
+    if (out.has_depths()) {
+      // Pack scales depths below 32768 before the half conversion.
+      const float half = HalfToFloat(Load<uint16_t>(codes + out.size() * 4 + 2 * i));
+      SL_CHECK_MSG(half < 32768.0f,
+                   "packed keyframe {}: depth {} has half code {} (Pack writes < 32768)", out.id(),
+                   i, half);
+    }
   }
   return out;
 }

@@ -182,6 +182,36 @@ TEST(PackedKeyframe, BadInputIsRefusedWithAReason) {
   v = b;
   v[45] |= 0x40;
   refused(v, "flags");
+  // Corrupt values inside a well-formed record: rotation codes beyond a unit quaternion (bytes
+  // 36-41), a keypoint exponent outside Pack's range or one that overflows float (byte 46), a
+  // half-float infinity as a depth (the last two bytes of the record: f has depths).
+  v = b;
+  for (size_t i = 36; i < 42; i += 2) {
+    v[i] = 0xff;
+    v[i + 1] = 0x7f;
+  }
+  refused(v, "rotation code");
+  v = b;
+  v[46] = 127;
+  refused(v, "keypoint exponent 127 outside [-100, 120]");
+  v = b;
+  v[46] = 120;
+  refused(v, "is not finite");
+  v = b;
+  v[48 + 5 * 32] = 0x00;  // keypoint 0's x code -32768: Pack clamps to +-32767
+  v[48 + 5 * 32 + 1] = 0x80;
+  refused(v, "keypoint 0 has code -32768");
+  v = b;
+  v[v.size() - 2] = 0x00;  // 32768 as a half: Pack scales depths below it
+  v[v.size() - 1] = 0x78;
+  refused(v, "depth 4 has half code 32768");
+  v = b;
+  v[v.size() - 1] = 0xbc;  // -1.0 as a half: Pack stores unknown depths as 0, never negative
+  refused(v, "depth 4 is not finite or negative");
+  v = b;
+  v[v.size() - 2] = 0x00;
+  v[v.size() - 1] = 0x7c;
+  refused(v, "depth 4 is not finite or negative");
   Fields g = f;
   g.keypoints.pop_back();
   EXPECT_THROW(PackedKeyframe::Pack(g), std::invalid_argument);

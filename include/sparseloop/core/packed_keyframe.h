@@ -65,7 +65,8 @@ class PackedKeyframe {
   // a non-finite value, a non-positive scale or a non-unit quaternion (1e-3).
   static PackedKeyframe Pack(const Fields& fields);
   // Reads bytes written by bytes(); throws std::invalid_argument (naming what is wrong) for a
-  // wrong size, version or flag, or a non-finite value.
+  // wrong size, version or flag, an exponent outside Pack's range, a rotation code that is not a
+  // unit quaternion, a negative depth or a non-finite value: what it accepts, Pack accepts again.
   static PackedKeyframe FromBytes(std::span<const uint8_t> bytes);
   Fields Unpack() const;
 
