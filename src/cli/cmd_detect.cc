@@ -130,8 +130,9 @@ int RunDetect(int argc, char** argv) {
     input.intrinsics = dataset.intrinsics;
     if (have_poses) input.world_from_cam = Sim3d(raw->poses[i].world_from_cam);
     const LoopResult r = detector.Process(input);
-    bytes += detector.packed_record(frame.index).Bytes();
-    if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), map_session));
+    const PackedKeyframe& stored = detector.packed_record(frame.index);
+    bytes += stored.Bytes();
+    if (map) map->PutRecord(map_session, stored);
     if (map && r.detected()) {
       map->PutLoop({map_session, r.query_id, r.match_session == 0 ? map_session : r.match_session,
                     r.match_id, r.inliers, r.score, r.match_from_query, true});

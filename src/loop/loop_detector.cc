@@ -799,9 +799,7 @@ std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, 
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
   const size_t eligible = query_index > exclude ? query_index - exclude : 0;
   for (; ann_indexed_ < eligible; ++ann_indexed_)
-    ann_->Add(static_cast<int64_t>(ann_indexed_),
-              std::vector<Descriptor>(records_[ann_indexed_].descriptors().begin(),
-                                      records_[ann_indexed_].descriptors().end()));
+    ann_->Add(static_cast<int64_t>(ann_indexed_), records_[ann_indexed_].descriptors());
   if (allowed.empty()) return {};
   std::vector<int64_t> allowed_sorted = allowed;
   std::sort(allowed_sorted.begin(), allowed_sorted.end());

@@ -371,18 +371,21 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   SL_CHECK_MSG(std::isfinite(kf.timestamp), "keyframe {}: non-finite timestamp", kf.id);
   SL_CHECK_MSG(std::isfinite(kf.focal_px) && kf.focal_px >= 0,
                "keyframe {}: focal_px must be finite and >= 0, got {}", kf.id, kf.focal_px);
-  const PackedKeyframe packed = PackedKeyframe::Pack(ToFields(kf));  // before any write
+  PutRecord(kf.session, PackedKeyframe::Pack(ToFields(kf)));  // packed before any write
+}
+
+void MapDatabase::PutRecord(int64_t session, const PackedKeyframe& record) {
   BeginIfNeeded();
   Statement st(db_, "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?,?,?,?)", path_);
-  sqlite3_bind_int64(st.get(), 1, kf.session);
-  sqlite3_bind_int64(st.get(), 2, kf.id);
-  sqlite3_bind_double(st.get(), 3, kf.timestamp);
-  const auto bytes = packed.bytes();
+  sqlite3_bind_int64(st.get(), 1, session);
+  sqlite3_bind_int64(st.get(), 2, record.id());
+  sqlite3_bind_double(st.get(), 3, record.timestamp());
+  const auto bytes = record.bytes();
   st.BindBlob(4, bytes.data(), bytes.size());
   const int rc = st.Step();
   if (rc == SQLITE_CONSTRAINT) {
     // Statement-level rollback: earlier keyframes in this transaction are kept.
-    SL_CHECK_MSG(false, "keyframe id {} already stored in session {}", kf.id, kf.session);
+    SL_CHECK_MSG(false, "keyframe id {} already stored in session {}", record.id(), session);
   }
   if (rc != SQLITE_DONE) {
     throw MapDatabaseError(path_.string() + ": cannot store keyframe: " + sqlite3_errmsg(db_));

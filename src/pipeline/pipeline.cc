@@ -220,8 +220,9 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
     LoopResult r = detector.Process(input);
     keyframe_rows.push_back(i);
     result.keyframe_frames.push_back(frame.index);
-    bytes += detector.packed_record(frame.index).Bytes();
-    if (map) map->PutKeyframe(ToStoredKeyframe(detector.record(frame.index), session));
+    const PackedKeyframe& stored = detector.packed_record(frame.index);
+    bytes += stored.Bytes();
+    if (map) map->PutRecord(session, stored);
     if (r.detected())
       (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
     result.frame_results.push_back(std::move(r));

@@ -28,7 +28,7 @@ class ScopedOmpThreads {
   int saved_;
 };
 
-const uint8_t* Codes(const std::vector<Descriptor>& d) {
+const uint8_t* Codes(std::span<const Descriptor> d) {
   return reinterpret_cast<const uint8_t*>(d.data());
 }
 
@@ -66,7 +66,7 @@ BinaryAnnIndex::~BinaryAnnIndex() = default;
 BinaryAnnIndex::BinaryAnnIndex(BinaryAnnIndex&&) noexcept = default;
 BinaryAnnIndex& BinaryAnnIndex::operator=(BinaryAnnIndex&&) noexcept = default;
 
-void BinaryAnnIndex::Add(int64_t keyframe_id, const std::vector<Descriptor>& descriptors) {
+void BinaryAnnIndex::Add(int64_t keyframe_id, std::span<const Descriptor> descriptors) {
   SL_CHECK_MSG(impl_, "BinaryAnnIndex used after being moved from");
   SL_CHECK_MSG(keyframe_ids_.empty() || keyframe_id > keyframe_ids_.back(),
                "BinaryAnnIndex::Add: keyframe ids must increase ({} after {})", keyframe_id,

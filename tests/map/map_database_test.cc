@@ -411,6 +411,17 @@ TEST(MapDatabase, StoredBytesArePackedKeyframeBytes) {
   EXPECT_EQ(map->LoadRecordBytes(s, 3).size(), 48u + 500u * 38u);
   EXPECT_THROW(map->LoadRecordBytes(s, 99), MapDatabaseError);
   EXPECT_THROW(map->LoadRecordBytes(s + 1, 1), MapDatabaseError);
+  // PutRecord stores a packed record's bytes as they are (what the detector keeps), and refuses
+  // a duplicate id like PutKeyframe.
+  StoredKeyframe other = MakeRandomKeyframe(s, 4, 15, true, 10u);
+  const PackedKeyframe packed = PackedKeyframe::Pack(ToFields(other));
+  map->PutRecord(s, packed);
+  EXPECT_EQ(map->LoadRecordBytes(s, 4),
+            std::vector<uint8_t>(packed.bytes().begin(), packed.bytes().end()));
+  EXPECT_THROW(map->PutRecord(s, packed), std::invalid_argument);
+  const int64_t s2 = map->BeginSession("t");
+  map->PutRecord(s2, packed);  // the same id in another session is a different keyframe
+  EXPECT_EQ(map->LoadRecordBytes(s2, 4), map->LoadRecordBytes(s, 4));
 }
 
 // A keyframe that cannot be packed (non-finite keypoint) is refused before anything is written.

@@ -92,7 +92,7 @@ TEST(BinaryAnnIndex, EmptyIndexAndIdOrder) {
   const std::vector<Descriptor> q = {RandomDescriptor(rng)};
   EXPECT_TRUE(index.Search(q, 3)[0].empty());
   EXPECT_TRUE(index.Query(q).empty());
-  index.Add(5, {RandomDescriptor(rng)});
+  index.Add(5, std::vector<Descriptor>{RandomDescriptor(rng)});
   index.Add(6, {});  // a keyframe without features is allowed
   EXPECT_THROW(index.Add(6, q), std::invalid_argument);
   EXPECT_THROW(index.Add(2, q), std::invalid_argument);

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/packed_keyframe.h"
 #include "sparseloop/core/sim3.h"
 
 struct sqlite3;
@@ -95,6 +96,9 @@ class MapDatabase {
   // std::invalid_argument on a duplicate (session, id), an inconsistent record (sizes that do not
   // match num_features) or one that cannot be packed, leaving the map unchanged.
   void PutKeyframe(const StoredKeyframe& keyframe);
+  // Stores `record`'s bytes as they are (the detector's stored record, LoopDetector::
+  // packed_record): no unpack / re-pack. Same errors as PutKeyframe.
+  void PutRecord(int64_t session, const PackedKeyframe& record);
   void PutLoop(const StoredLoop& loop);
   // Commits pending writes now (also done by the destructor).
   void Flush();

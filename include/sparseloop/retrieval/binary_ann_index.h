@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -56,7 +57,7 @@ class BinaryAnnIndex {
 
   // Indexes the descriptors of one keyframe. Keyframe ids must strictly increase (insertion order
   // is keyframe order). An empty descriptor set is allowed (the keyframe gets no votes).
-  void Add(int64_t keyframe_id, const std::vector<Descriptor>& descriptors);
+  void Add(int64_t keyframe_id, std::span<const Descriptor> descriptors);
 
   // Approximate k nearest stored descriptors of each query descriptor, nearest first (fewer when
   // fewer are stored). Not filtered by max_distance. k >= 1.
