@@ -11,6 +11,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "posegraph/edge_error.h"
+#include "posegraph/manifolds.h"
 #include "sparseloop/posegraph/pose_graph.h"
 
 namespace sparseloop {

@@ -20,9 +20,9 @@
 #include <cstddef>
 #include <vector>
 
-#include "sparseloop/posegraph/edge_error.h"
+#include "posegraph/edge_error.h"
+#include "posegraph/sim3_jet.h"
 #include "sparseloop/posegraph/pose_graph.h"
-#include "sparseloop/posegraph/sim3_jet.h"
 
 namespace sparseloop::internal {
 

@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 
 #include "chain_reduction.h"
+#include "edge_error.h"
+#include "manifolds.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"

@@ -11,7 +11,11 @@ fails when:
     depend on (directly or through the modules it depends on);
   - a public header includes a module-internal header (src/) at all;
   - a module includes <opencv2/...> or <ceres/...> although neither it nor a module it depends on
-    links OpenCV / Ceres (so core, io, eval, search, map and posegraph stay OpenCV-free).
+    links OpenCV / Ceres (so core, io, eval, search, map and posegraph stay OpenCV-free);
+  - a public header includes <opencv2/...> or <ceres/...> although the library is not a PUBLIC
+    dependency of its module or of a module it depends on (a private dependency stays out of the
+    headers a caller compiles: posegraph links Ceres privately, so its public headers are
+    Ceres-free).
 Usage: check_layers.py [SOURCE_DIR]
 """
 import pathlib
@@ -30,8 +34,16 @@ def modules_in_order(root):
 THIRD_PARTY = {"opencv2": re.compile(r"opencv_\w+|OpenCV_LIBS"), "ceres": re.compile(r"Ceres::")}
 
 
-def declared_deps(root, module):
-    """The sparseloop modules `module` links, plus "<opencv2>" / "<ceres>" for those libraries."""
+def public_part(call, body):
+    """The PUBLIC part of a sparseloop_add_module / target_link_libraries argument list."""
+    key = "PUBLIC_DEPS" if call == "sparseloop_add_module" else "PUBLIC"
+    m = re.search(rf"\b{key}\b(.*?)(?=\b(PRIVATE_DEPS|PRIVATE|INTERFACE|SOURCES)\b|$)", body, re.S)
+    return m.group(1) if m else ""
+
+
+def declared_deps(root, module, public_only=False):
+    """The sparseloop modules `module` links, plus "<opencv2>" / "<ceres>" for those libraries;
+    with public_only, only what it links PUBLIC."""
     path = root / "src" / module / "CMakeLists.txt"
     if not path.exists():
         return None
@@ -45,6 +57,8 @@ def declared_deps(root, module):
         if call.group(1) == "target_link_libraries" and not re.match(rf"\s*sparseloop_{module}\b",
                                                                      body):
             continue
+        if public_only:
+            body = public_part(call.group(1), body)
         deps |= set(re.findall(r"sparseloop::(\w+)", body))
         deps |= {f"<{lib}>" for lib, token in THIRD_PARTY.items() if token.search(body)}
     deps.discard(module)
@@ -65,6 +79,7 @@ def main():
     root = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else ".").resolve()
     order = modules_in_order(root)
     deps = {m: d for m in order if (d := declared_deps(root, m)) is not None}
+    public = {m: declared_deps(root, m, public_only=True) for m in deps}
     errors = []
     for m, ds in deps.items():
         for d in sorted(ds):
@@ -80,6 +95,7 @@ def main():
     checked = 0
     for m in deps:
         allowed = closure(m, deps) | {m}
+        public_allowed = set().union(*(public[x] for x in (closure(m, public) | {m}) if x in public))
         files = [("include", p) for p in (root / "include" / "sparseloop" / m).rglob("*.h")]
         files += [("src", p) for p in (root / "src" / m).rglob("*") if p.suffix in (".h", ".cc")]
         for kind, path in files:
@@ -90,6 +106,9 @@ def main():
                 if f"<{lib}>" not in allowed:
                     errors.append(f"{rel}: includes <{lib}/...>, but {m} links no {lib} "
                                   f"(src/{m}/CMakeLists.txt)")
+                elif kind == "include" and f"<{lib}>" not in public_allowed:
+                    errors.append(f"{rel}: public header includes <{lib}/...>, but {m} links "
+                                  f"{lib} only privately (src/{m}/CMakeLists.txt)")
             for inc in include_re.findall(text):
                 parts = inc.split("/")
                 if parts[0] == "sparseloop" and len(parts) > 2:

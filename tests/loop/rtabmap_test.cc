@@ -81,7 +81,9 @@ TEST(RtabmapCorridor, PrecisionAndRecallOverK) {
     best_recall = std::max(best_recall, pr.recall_at_full_precision);
     // K = 15, the paper's K, without a pose prior: 0.02 with the K >= 30 floors (12 matches, 12
     // inliers), 0.30 with the small-K floors (8 / 8; docs/DETECTOR.md, "Small K").
-    if (k == 15) EXPECT_GE(pr.recall_at_full_precision, 0.25);
+    if (k == 15) {
+      EXPECT_GE(pr.recall_at_full_precision, 0.25);
+    }
   }
   EXPECT_GE(best_recall, 0.9);
 }

@@ -8,6 +8,8 @@
 
 #include "loop_harness.h"
 #include "posegraph/chain_reduction.h"
+#include "posegraph/edge_error.h"
+#include "posegraph/sim3_jet.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/posegraph/g2o.h"
 #include "sparseloop/posegraph/interpolation.h"

@@ -5,10 +5,10 @@
 #include <ceres/manifold_test_utils.h>
 #include <gmock/gmock.h>
 
+#include "posegraph/edge_error.h"
+#include "posegraph/manifolds.h"
+#include "posegraph/sim3_jet.h"
 #include "sparseloop/core/sim3.h"
-#include "sparseloop/posegraph/edge_error.h"
-#include "sparseloop/posegraph/manifolds.h"
-#include "sparseloop/posegraph/sim3_jet.h"
 #include "test_util.h"
 
 namespace sparseloop {

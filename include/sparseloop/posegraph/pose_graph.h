@@ -16,8 +16,7 @@
 
 #include "sparseloop/core/loop_pair.h"
 #include "sparseloop/core/sim3.h"
-#include "sparseloop/posegraph/edge_error.h"
-#include "sparseloop/posegraph/manifolds.h"
+#include "sparseloop/posegraph/types.h"
 
 namespace sparseloop {
 

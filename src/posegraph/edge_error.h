@@ -12,12 +12,11 @@
 #include <ceres/jet.h>
 #include <ceres/sized_cost_function.h>
 
+#include "posegraph/sim3_jet.h"
 #include "sparseloop/core/sim3.h"
-#include "sparseloop/posegraph/sim3_jet.h"
+#include "sparseloop/posegraph/types.h"
 
 namespace sparseloop {
-
-using Matrix7d = Eigen::Matrix<double, 7, 7>;
 
 // Conversions between core's Sim3d and the templated double Sim(3) of sim3_jet.h (same storage
 // order, Sim3d::ToVector).
@@ -30,11 +29,6 @@ inline Sim3d FromJetSim3(const jet::Sim3<double>& x) {
   x.ToArray(v.data());
   return Sim3d::FromVector(v);
 }
-
-// S with S^T S = information for a symmetric positive semi-definite 7x7 matrix (eigen
-// decomposition, so rank-deficient information such as 2D edges embedded in 7D is allowed).
-// Throws std::invalid_argument for a non-symmetric or indefinite matrix.
-Matrix7d SqrtInformation(const Matrix7d& information);
 
 class EdgeError {
  public:

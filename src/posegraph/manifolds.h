@@ -13,19 +13,10 @@
 #include <ceres/autodiff_manifold.h>
 #include <ceres/manifold.h>
 
-#include "sparseloop/posegraph/sim3_jet.h"
+#include "posegraph/sim3_jet.h"
+#include "sparseloop/posegraph/types.h"
 
 namespace sparseloop {
-
-enum class VertexType {
-  kSim3,     // 7 DoF similarity (monocular: scale drifts)
-  kSe3,      // 6 DoF rigid (stereo / RGB-D / VIO): scale kept as stored (1)
-  kFourDof,  // x, y, z, yaw (gravity-aligned VIO: roll and pitch are observable)
-  kSe2,      // x, y, yaw (planar 2D graphs)
-};
-
-// Tangent dimension of a vertex type (7, 6, 4, 3).
-int TangentSize(VertexType type);
 
 struct Sim3PlusFunctor {
   template <typename T>
