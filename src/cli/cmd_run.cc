@@ -34,12 +34,16 @@ int RunRun(int argc, char** argv) {
   CLI::App app{"Detect loops, optimise the pose graph and write the corrected trajectory"};
   DetectorFlags flags;
   AddDetectorFlags(app, &flags);
-  std::string gt_path, vertex, map_path;
+  std::string gt_path, vertex, map_path, covariance_path;
   double gt_loop_distance = -1.0;
   app.add_option("--gt", gt_path, "Ground-truth trajectory (TUM/KITTI/EuRoC) for evaluation");
   app.add_option("--vertex", vertex,
                  "Pose-graph vertices: sim3 (monocular, default) | se3 (metric poses)")
       ->check(CLI::IsMember({"sim3", "se3"}));
+  app.add_option("--odometry-covariance", covariance_path,
+                 "The vSLAM's covariance of each keyframe step: 'key' + 21 (upper triangle) or 36 "
+                 "numbers per line, key = timestamp (frame index for KITTI / images:); steps "
+                 "without a line keep the odometry model (docs/FORMATS.md)");
   app.add_option("--map", map_path,
                  "Persistent map database (SQLite): earlier sessions in it are loaded for "
                  "multi-session loop closure, and this run is stored as a new session");
@@ -84,6 +88,21 @@ int RunRun(int argc, char** argv) {
   const Dataset dataset = OpenDatasetFromFlags(flags);
   const Trajectory raw = *RawPosesForFrames(flags.poses, dataset, options.raw_association_max_dt);
   const std::string raw_source = flags.poses.empty() ? dataset.raw_poses_source : flags.poses;
+  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> step_covariances;
+  if (!covariance_path.empty()) {
+    step_covariances = MatchStepCovariancesToFrames(dataset, ReadStepCovariances(covariance_path),
+                                                    options.raw_association_max_dt);
+    const auto with = std::count_if(step_covariances.begin(), step_covariances.end(),
+                                    [](const auto& c) { return c.has_value(); });
+    if (with == 0) {
+      throw std::invalid_argument(fmt::format(
+          "--odometry-covariance {}: no line matches a frame of the dataset (keys are {})",
+          covariance_path,
+          dataset.kind == "kitti" || dataset.kind == "images" ? "frame indices" : "timestamps"));
+    }
+    Logger().info("run: the caller's odometry covariance for {} of {} frames ({})", with,
+                  step_covariances.size(), covariance_path);
+  }
   std::optional<Trajectory> gt;
   std::string gt_file;  // the file evaluated against
   if (!gt_path.empty()) {
@@ -102,7 +121,7 @@ int RunRun(int argc, char** argv) {
   }
   // Every input is read: the folder now holds this run only.
   PrepareRunFolder(flags.out, "run", flags.dataset, kRunOutputFiles,
-                   {flags.config, flags.poses, gt_path, map_path});
+                   {flags.config, flags.poses, gt_path, map_path, covariance_path});
   if (gt && !gt->has_timestamps) {
     // Index-only GT (KITTI): give each pose its frame's timestamp so that every file written
     // below shares one time base (TUM files, report, evo).
@@ -117,9 +136,9 @@ int RunRun(int argc, char** argv) {
   }
 
   ProgressLine progress("run", flags.quiet);
-  const PipelineResult result = RunPipeline(dataset, raw, options, [&](const PipelineProgress& p) {
-    progress.Update(p.frames_done, p.frames_total, p.loops);
-  });
+  const PipelineResult result = RunPipeline(
+      dataset, raw, step_covariances, options,
+      [&](const PipelineProgress& p) { progress.Update(p.frames_done, p.frames_total, p.loops); });
   progress.Finish();
 
   const std::filesystem::path out = flags.out;
@@ -149,6 +168,10 @@ int RunRun(int argc, char** argv) {
   summary["poses_file"] = raw_source;  // --poses, or the rosbag: pose topic
   if (gt) summary["gt_file"] = gt_file;
   summary["skipped_frames"] = result.skipped_frames;
+  if (!covariance_path.empty()) {
+    summary["odometry_covariance"] = {{"file", covariance_path},
+                                      {"steps", result.caller_covariance_steps}};
+  }
   summary["cross_session_loops"] = result.cross_session_loops.size();
   summary["optimizer"] = {{"status", ToString(result.optimizer.status)},
                           {"initial_cost", result.optimizer.initial_cost},

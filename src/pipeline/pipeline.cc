@@ -25,45 +25,86 @@ void PipelineOptions::Check() const {
   SL_CHECK_MSG(raw_association_max_dt > 0, "raw_association_max_dt must be > 0");
 }
 
+namespace {
+
+// The one association of per-frame inputs (raw poses, step covariances) with the dataset's frames:
+// by time (nearest key within max_dt of the frame's timestamp) when the input has timestamps and
+// the dataset is not index-associated (KITTI, images:), else by frame index (key == frame). Keys
+// are sorted. Returns the input row of each frame, or nothing where no row is close enough.
+bool AssociateByTime(const Dataset& dataset, bool input_has_timestamps) {
+  return input_has_timestamps && dataset.kind != "kitti" && dataset.kind != "images";
+}
+
+std::vector<std::optional<size_t>> RowsForFrames(const Dataset& dataset,
+                                                 const std::vector<double>& keys, bool by_time,
+                                                 double max_dt) {
+  std::vector<std::optional<size_t>> rows;
+  rows.reserve(dataset.frames.size());
+  if (!by_time) {
+    std::unordered_map<int64_t, size_t> by_frame;
+    for (size_t i = 0; i < keys.size(); ++i) by_frame[static_cast<int64_t>(keys[i])] = i;
+    for (const auto& f : dataset.frames) {
+      const auto it = by_frame.find(f.index);
+      rows.push_back(it == by_frame.end() ? std::nullopt : std::optional<size_t>(it->second));
+    }
+    return rows;
+  }
+  size_t j = 0;
+  for (const auto& f : dataset.frames) {
+    while (j + 1 < keys.size() &&
+           std::abs(keys[j + 1] - f.timestamp) <= std::abs(keys[j] - f.timestamp)) {
+      ++j;
+    }
+    const bool ok = !keys.empty() && std::abs(keys[j] - f.timestamp) <= max_dt;
+    rows.push_back(ok ? std::optional<size_t>(j) : std::nullopt);
+  }
+  return rows;
+}
+
+}  // namespace
+
 Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, double max_dt,
                                  const std::filesystem::path& raw_path) {
   Trajectory out;
   out.has_rotation = raw.has_rotation;
   out.has_timestamps = raw.has_timestamps;
-  const bool by_time = raw.has_timestamps && dataset.kind != "kitti" && dataset.kind != "images";
-  if (!by_time) {
-    // Index association: raw pose with frame == dataset frame index.
-    std::unordered_map<int64_t, size_t> by_frame;
-    for (size_t i = 0; i < raw.poses.size(); ++i) by_frame[raw.poses[i].frame] = i;
-    for (const auto& f : dataset.frames) {
-      auto it = by_frame.find(f.index);
-      if (it == by_frame.end()) {
+  const bool by_time = AssociateByTime(dataset, raw.has_timestamps);
+  std::vector<double> keys;
+  for (const auto& p : raw.poses) {
+    keys.push_back(by_time ? p.timestamp : static_cast<double>(p.frame));
+  }
+  const auto rows = RowsForFrames(dataset, keys, by_time, max_dt);
+  for (size_t i = 0; i < dataset.frames.size(); ++i) {
+    const DatasetFrame& f = dataset.frames[i];
+    if (!rows[i]) {
+      if (!by_time) {
         throw FileError(raw_path.string(), 0,
                         fmt::format("a raw pose for every image ({} images, frame {} has none)",
                                     dataset.frames.size(), f.index),
                         fmt::format("{} poses", raw.poses.size()));
       }
-      StampedPose p = raw.poses[it->second];
-      p.frame = f.index;
-      p.timestamp = f.timestamp;
-      out.poses.push_back(p);
-    }
-    return out;
-  }
-  size_t j = 0;
-  for (const auto& f : dataset.frames) {
-    while (j + 1 < raw.poses.size() && std::abs(raw.poses[j + 1].timestamp - f.timestamp) <=
-                                           std::abs(raw.poses[j].timestamp - f.timestamp)) {
-      ++j;
-    }
-    if (raw.poses.empty() || std::abs(raw.poses[j].timestamp - f.timestamp) > max_dt) {
       throw FileError(raw_path.string(), 0,
                       fmt::format("a raw pose within {} s of every image timestamp", max_dt),
                       fmt::format("none for image {} at t={:.6f}", f.index, f.timestamp));
     }
-    StampedPose p = raw.poses[j];
+    StampedPose p = raw.poses[*rows[i]];
     p.frame = f.index;
+    if (!by_time) p.timestamp = f.timestamp;
     out.poses.push_back(p);
+  }
+  return out;
+}
+
+std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFrames(
+    const Dataset& dataset, const std::vector<StepCovariance>& covariances, double max_dt) {
+  // Keys are timestamps unless the dataset itself is index-associated.
+  const bool by_time = AssociateByTime(dataset, true);
+  std::vector<double> keys;
+  for (const auto& c : covariances) keys.push_back(c.key);
+  const auto rows = RowsForFrames(dataset, keys, by_time, max_dt);
+  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> out;
+  for (const auto& row : rows) {
+    out.push_back(row ? std::optional(covariances[*row].covariance) : std::nullopt);
   }
   return out;
 }
@@ -166,10 +207,20 @@ LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
 PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
                            const PipelineOptions& options,
                            const PipelineProgressCallback& progress) {
+  return RunPipeline(dataset, raw, {}, options, progress);
+}
+
+PipelineResult RunPipeline(
+    const Dataset& dataset, const Trajectory& raw,
+    const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariances,
+    const PipelineOptions& options, const PipelineProgressCallback& progress) {
   options.Check();
   SL_CHECK_MSG(raw.poses.size() == dataset.frames.size(),
                "raw trajectory has {} poses for {} frames; use MatchRawPosesToFrames",
                raw.poses.size(), dataset.frames.size());
+  SL_CHECK_MSG(step_covariances.empty() || step_covariances.size() == dataset.frames.size(),
+               "{} step covariances for {} frames; use MatchStepCovariancesToFrames",
+               step_covariances.size(), dataset.frames.size());
   PipelineResult result;
   result.raw = raw;
   LoopDetector detector(options.detector);
@@ -234,16 +285,21 @@ PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
   // Pose graph over the processed keyframes.
   std::vector<int64_t> ids;
   std::vector<Sim3d> poses;
+  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> covariances;
   std::unordered_map<int64_t, size_t> row_of_id;
   for (size_t row : keyframe_rows) {
     row_of_id[dataset.frames[row].index] = row;
     ids.push_back(dataset.frames[row].index);
     poses.emplace_back(raw.poses[row].world_from_cam);
+    if (!step_covariances.empty()) covariances.push_back(step_covariances[row]);
   }
+  for (size_t k = 1; k < covariances.size(); ++k)
+    result.caller_covariance_steps += covariances[k] ? 1 : 0;
   result.corrected = raw;
   result.loop_accepted.assign(result.loops.size(), false);
   if (ids.size() < 2) return result;
-  PoseGraph graph = BuildOdometryGraph(ids, poses, options.vertex_type, options.odometry);
+  PoseGraph graph =
+      BuildOdometryGraph(ids, poses, options.vertex_type, options.odometry, covariances);
   for (const LoopResult& loop : result.loops) {
     const size_t q = row_of_id.at(loop.query_id);
     const size_t m = row_of_id.at(loop.match_id);

@@ -196,37 +196,58 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   adj->resize(n);
   for (auto& row : *adj) row.resize(n, false);
   if (from >= n) return;
-  // Prefix sums over the raw trajectory (vertex insertion order) for the chain covariance:
-  //  sum of squared step lengths, sum of positions, sum of squared position norms.
+  // Per-step variances (step k: vertex k-1 -> k, insertion order): the model's, or those of the
+  // caller's covariance where the step's edge carries one.
   const size_t m = ids_.size();
-  std::vector<double> len2(m, 0.0);
-  std::vector<Eigen::Vector3d> p1(m + 1, Eigen::Vector3d::Zero());
-  std::vector<double> p2(m + 1, 0.0);
-  for (size_t i = 0; i < m; ++i) {
-    const Eigen::Vector3d& p = raw_poses_[i].translation;
-    if (i > 0) {
-      const double l = (p - raw_poses_[i - 1].translation).norm();
-      len2[i] = len2[i - 1] + l * l;
-    }
-    p1[i + 1] = p1[i] + p;
-    p2[i + 1] = p2[i] + p.squaredNorm();
-  }
   const bool sim3 = type_ == VertexType::kSim3;
   const double ft2 = options.step_translation_fraction * options.step_translation_fraction;
   const double sr2 = options.step_rotation_sigma_rad * options.step_rotation_sigma_rad;
   const double ss2 = sim3 ? options.step_scale_sigma * options.step_scale_sigma : 0.0;
+  std::vector<double> step_t2(m, 0.0), step_r2(m, sr2);
+  for (size_t k = 1; k < m; ++k) {
+    step_t2[k] = ft2 * (raw_poses_[k].translation - raw_poses_[k - 1].translation).squaredNorm();
+  }
+  for (const PoseGraphEdge& e : edges_) {
+    if (!e.information_from_caller) continue;
+    const size_t a = Index(e.from), b = Index(e.to);
+    if (std::max(a, b) != std::min(a, b) + 1) continue;  // not a step
+    const Eigen::Matrix<double, 6, 6> cov = e.information.topLeftCorner<6, 6>().inverse();
+    const size_t k = std::max(a, b);
+    step_t2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.topLeftCorner<3, 3>())
+                     .eigenvalues()
+                     .maxCoeff();
+    step_r2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.bottomRightCorner<3, 3>())
+                     .eigenvalues()
+                     .maxCoeff();
+  }
+  // Prefix sums over the raw trajectory for the chain covariance: translation and rotation
+  // variances of the steps; the lever-arm weights w_k = rotation + scale variance of the step
+  // leaving vertex k, with sum w_k, sum w_k p_k, sum w_k |p_k|^2.
+  std::vector<double> t2(m, 0.0), r2(m, 0.0);
+  std::vector<double> w0(m + 1, 0.0), w2(m + 1, 0.0);
+  std::vector<Eigen::Vector3d> w1(m + 1, Eigen::Vector3d::Zero());
+  for (size_t i = 0; i < m; ++i) {
+    if (i > 0) {
+      t2[i] = t2[i - 1] + step_t2[i];
+      r2[i] = r2[i - 1] + step_r2[i];
+    }
+    const Eigen::Vector3d& p = raw_poses_[i].translation;
+    const double w = (i + 1 < m ? step_r2[i + 1] : sr2) + ss2;
+    w0[i + 1] = w0[i] + w;
+    w1[i + 1] = w1[i] + w * p;
+    w2[i + 1] = w2[i] + w * p.squaredNorm();
+  }
   // Diagonal covariance of the chain from vertex index i to j, expressed at j.
   auto chain_cov = [&](size_t i, size_t j) {
     if (i > j) std::swap(i, j);
     Eigen::Matrix<double, 7, 1> cov = Eigen::Matrix<double, 7, 1>::Zero();
-    const double steps = static_cast<double>(j - i);
     const Eigen::Vector3d& pj = raw_poses_[j].translation;
-    // sum_{k in [i, j)} |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
-    const double lever = steps * pj.squaredNorm() - 2.0 * pj.dot(p1[j] - p1[i]) + (p2[j] - p2[i]);
-    const double trans = ft2 * (len2[j] - len2[i]) + (sr2 + ss2) * std::max(lever, 0.0);
-    cov.head<3>().setConstant(trans);
-    cov.segment<3>(3).setConstant(steps * sr2);
-    cov[6] = steps * ss2;
+    // sum_{k in [i, j)} w_k |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
+    const double lever =
+        (w0[j] - w0[i]) * pj.squaredNorm() - 2.0 * pj.dot(w1[j] - w1[i]) + (w2[j] - w2[i]);
+    cov.head<3>().setConstant(t2[j] - t2[i] + std::max(lever, 0.0));
+    cov.segment<3>(3).setConstant(r2[j] - r2[i]);
+    cov[6] = static_cast<double>(j - i) * ss2;
     return cov;
   };
   // Per-loop marginal variances from the (effective) information. A diagonal information is

@@ -618,13 +618,17 @@ Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {
   return info;
 }
 
-PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
-                             const std::vector<Sim3d>& raw_world_from_keyframe, VertexType type,
-                             const OdometryWeighting& weighting) {
+PoseGraph BuildOdometryGraph(
+    const std::vector<int64_t>& ids, const std::vector<Sim3d>& raw_world_from_keyframe,
+    VertexType type, const OdometryWeighting& weighting,
+    const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariance) {
   weighting.Check();
   SL_CHECK_MSG(ids.size() == raw_world_from_keyframe.size(),
                "ids ({}) and poses ({}) differ in size", ids.size(),
                raw_world_from_keyframe.size());
+  SL_CHECK_MSG(step_covariance.empty() || step_covariance.size() == ids.size(),
+               "step covariances ({}) must be empty or one per keyframe ({})",
+               step_covariance.size(), ids.size());
   PoseGraph graph(type);
   for (size_t i = 0; i < ids.size(); ++i) graph.AddVertex(ids[i], raw_world_from_keyframe[i]);
   for (size_t i = 1; i < ids.size(); ++i) {
@@ -632,7 +636,17 @@ PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
     edge.from = ids[i - 1];
     edge.to = ids[i];
     edge.from_from_to = raw_world_from_keyframe[i - 1].Inverse() * raw_world_from_keyframe[i];
-    edge.information = weighting.Information(edge.from_from_to);
+    if (!step_covariance.empty() && step_covariance[i]) {
+      try {
+        edge.information = weighting.InformationFromCovariance(*step_covariance[i]);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(
+            fmt::format("odometry covariance of keyframe {}: {}", ids[i], e.what()));
+      }
+      edge.information_from_caller = true;
+    } else {
+      edge.information = weighting.Information(edge.from_from_to);
+    }
     if (type != VertexType::kSim3) edge.from_from_to.scale = 1.0;
     graph.AddEdge(edge);
   }

@@ -73,6 +73,7 @@ void BackgroundOptimizer::Apply(const Message& message, bool* end, bool* new_loo
       edge.from_from_to = step;
       if (graph_.vertex_type() != VertexType::kSim3) edge.from_from_to.scale = 1.0;
       edge.information = kf->information ? *kf->information : options_.odometry.Information(step);
+      edge.information_from_caller = kf->information.has_value();
       graph_.AddEdge(edge);
     }
     has_last_raw_ = true;

@@ -38,6 +38,13 @@ std::vector<std::map<std::string, std::string>> ReadCsv(const fs::path& p) {
   return rows;
 }
 
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
 // Ran once: the rendered loop sequence through `run` with its GT.
 const fs::path& RunOnRenderedSequence() {
   static const fs::path out = [] {
@@ -76,6 +83,66 @@ TEST(CliRunSummary, LoopChecksListEveryAcceptedLoop) {
     inconsistent += !c["consistent"].get<bool>();
   }
   EXPECT_EQ(summary["inconsistent_loops"].get<size_t>(), inconsistent);
+}
+
+// `run --odometry-covariance`: one line per frame (KITTI: keyed by frame index), 21 numbers. Every
+// step takes the caller's covariance (summary.json says how many) and the solve changes with it;
+// a malformed line is refused before anything is written, naming the file and the line.
+TEST(CliRunSummary, OdometryCovarianceFileWeightsEveryStep) {
+  const fs::path& seq = RenderedLoopSequence();
+  const auto dir = TempDir();
+  size_t frames = 0;
+  for (const auto& e : fs::directory_iterator(seq / "image_0")) frames += e.is_regular_file();
+  ASSERT_GT(frames, 20u);
+  const fs::path cov = dir / "cov.txt";
+  {
+    std::ofstream f(cov);
+    f << "# frame, upper triangle of the step covariance [t, r]\n";
+    for (size_t i = 0; i < frames; ++i) {
+      f << i;
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c) f << " " << (r != c ? 0.0 : r < 3 ? 0.25 : 0.0025);
+      }
+      f << "\n";
+    }
+  }
+  const fs::path out = dir / "out";
+  const CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                              (seq / "poses_raw.txt").string(), "--odometry-covariance",
+                              cov.string(), "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = ReadJson(out / "summary.json");
+  ASSERT_TRUE(summary.contains("odometry_covariance")) << summary.dump(1);
+  EXPECT_EQ(summary["odometry_covariance"]["steps"].get<size_t>(), frames - 1);
+  const auto plain = ReadJson(RunOnRenderedSequence() / "summary.json");
+  EXPECT_FALSE(plain.contains("odometry_covariance"));
+  EXPECT_NE(ReadText(out / "trajectory.txt"), ReadText(RunOnRenderedSequence() / "trajectory.txt"));
+
+  const fs::path bad = dir / "bad.txt";
+  {
+    std::ofstream f(bad);
+    f << "0 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n1 1 0 0\n";
+  }
+  const fs::path out2 = dir / "out2";
+  const CliResult b = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                              (seq / "poses_raw.txt").string(), "--odometry-covariance",
+                              bad.string(), "--out", out2.string()});
+  EXPECT_NE(b.exit_code, 0);
+  EXPECT_NE(b.err.find(bad.string() + ":2:"), std::string::npos) << b.err;
+  EXPECT_FALSE(fs::exists(out2));
+  // Keys of another sequence: no frame matches.
+  const fs::path other = dir / "other.txt";
+  {
+    std::ofstream f(other);
+    f << "99999 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  }
+  const CliResult o = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                              (seq / "poses_raw.txt").string(), "--odometry-covariance",
+                              other.string(), "--out", out2.string()});
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_NE(o.err.find("--odometry-covariance"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("frame indices"), std::string::npos) << o.err;
+  EXPECT_FALSE(fs::exists(out2));
 }
 
 // The first `frames` frames of the rendered sequence, without GT (no poses: global search).

@@ -212,6 +212,104 @@ TEST(Pcm, ConsistentLoopsKeptInconsistentDropped) {
   EXPECT_EQ(summary.rejected_loop_ids[0], (LoopPair{160, 20}));
 }
 
+// BuildOdometryGraph with the caller's step covariances: those steps get the inverse as
+// information and the caller flag, the others the model; a bad covariance names its keyframe.
+TEST(PoseGraph, OdometryGraphTakesTheCallersStepCovariances) {
+  const Synthetic s = MakeSynthetic(20, 1.0, 2);
+  std::vector<int64_t> ids;
+  for (size_t i = 0; i < s.raw.size(); ++i) ids.push_back(static_cast<int64_t>(100 + i));
+  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> cov(ids.size());
+  Eigen::Matrix<double, 6, 6> c = Eigen::Matrix<double, 6, 6>::Identity() * 0.04;
+  c(0, 1) = c(1, 0) = 0.01;
+  cov[3] = c;
+  cov[7] = c * 2.0;
+  const OdometryWeighting w;
+  const PoseGraph graph = BuildOdometryGraph(ids, s.raw, VertexType::kSim3, w, cov);
+  ASSERT_EQ(graph.edges().size(), ids.size() - 1);
+  for (const PoseGraphEdge& e : graph.edges()) {
+    const size_t i = static_cast<size_t>(e.to - 100);
+    EXPECT_EQ(e.information_from_caller, cov[i].has_value()) << i;
+    const Matrix7d expected =
+        cov[i] ? w.InformationFromCovariance(*cov[i]) : w.Information(e.from_from_to);
+    EXPECT_LT((e.information - expected).norm(), 1e-9 * expected.norm()) << i;
+  }
+  EXPECT_LT((graph.edges()[2].information.topLeftCorner<6, 6>().inverse() - c).norm(), 1e-12);
+  cov[5] = -c;
+  try {
+    BuildOdometryGraph(ids, s.raw, VertexType::kSim3, w, cov);
+    ADD_FAILURE() << "no error for a negative definite covariance";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("keyframe 105"), std::string::npos) << e.what();
+  }
+}
+
+// PCM with the caller's odometry covariance (PoseGraphEdge::information_from_caller): with a
+// per-step rotation noise of 2 and 4 deg (sigma) the default per-step model (0.01 rad) calls pairs
+// of true loops inconsistent; with the covariance the caller states for that noise PCM keeps the
+// true loops; a caller claiming 10x less than the truth makes PCM keep fewer. No false loop kept.
+TEST(Pcm, CallerCovarianceReplacesTheModelForItsSteps) {
+  for (const double sigma_deg : {2.0, 4.0}) {
+    SCOPED_TRACE(sigma_deg);
+    Synthetic s = MakeSynthetic(60, 2.5, 3);
+    const double sigma = sigma_deg * M_PI / 180.0;
+    auto noise_rng = test::SeededRng(5);
+    std::normal_distribution<double> n01(0.0, 1.0);
+    std::vector<Sim3d> raw{s.gt[0]};
+    for (size_t i = 1; i < s.gt.size(); ++i) {
+      const Sim3d rel = s.gt[i - 1].Inverse() * s.gt[i];
+      Vector6d noise = Vector6d::Zero();
+      for (int k = 3; k < 6; ++k) noise[k] = sigma * n01(noise_rng);
+      const Rigid3d noisy = rel.ToRigid() * Rigid3d::Exp(noise);
+      raw.push_back(raw.back() * Sim3d(1.0, noisy.rotation, noisy.translation));
+    }
+    s.raw = raw;
+    auto rng = test::SeededRng(21);
+    test::LoopHarnessOptions ho = Revisits(3, 0.2);
+    ho.min_gap = 40;
+    const test::HarnessLoops loops = test::MakeHarnessLoops(s.raw, s.gt, ho, rng);
+    size_t n_true = 0;
+    for (const bool f : loops.is_false) n_true += f ? 0 : 1;
+    ASSERT_GE(n_true, 6u);
+    ASSERT_GE(loops.loops.size() - n_true, 2u);
+    auto kept_with = [&](bool caller, double stated_sigma) {
+      PoseGraph graph(VertexType::kSim3);
+      OdometryWeighting odometry;
+      for (size_t i = 0; i < s.raw.size(); ++i) {
+        graph.AddVertex(static_cast<int64_t>(i), s.raw[i]);
+        if (i == 0) continue;
+        PoseGraphEdge e;
+        e.from = static_cast<int64_t>(i - 1);
+        e.to = static_cast<int64_t>(i);
+        e.from_from_to = s.raw[i - 1].Inverse() * s.raw[i];
+        const double step = e.from_from_to.translation.norm();
+        Eigen::Matrix<double, 6, 6> cov = Eigen::Matrix<double, 6, 6>::Zero();
+        cov.diagonal() << Eigen::Vector3d::Constant(std::pow(0.05 * step, 2)),
+            Eigen::Vector3d::Constant(stated_sigma * stated_sigma);
+        e.information =
+            caller ? odometry.InformationFromCovariance(cov) : odometry.Information(e.from_from_to);
+        e.information_from_caller = caller;
+        graph.AddEdge(e);
+      }
+      for (const LoopConstraint& l : loops.loops) graph.AddLoop(l);
+      size_t true_kept = 0, false_kept = 0;
+      for (const size_t k : graph.PcmConsistentLoops(PcmOptions{})) {
+        (loops.is_false[k] ? false_kept : true_kept) += 1;
+      }
+      return std::pair{true_kept, false_kept};
+    };
+    const auto [model_true, model_false] = kept_with(false, sigma);
+    const auto [caller_true, caller_false] = kept_with(true, sigma);
+    const auto [tight_true, tight_false] = kept_with(true, 0.1 * sigma);
+    std::cerr << "rotation noise " << sigma_deg << " deg/kf: " << n_true
+              << " true loops, PCM keeps " << model_true << " with the model, " << caller_true
+              << " with the caller's covariance, " << tight_true << " with 1/10 of it\n";
+    EXPECT_EQ(model_false + caller_false + tight_false, 0u);
+    EXPECT_LT(model_true, caller_true);
+    EXPECT_GE(caller_true, n_true * 9 / 10);
+    EXPECT_LT(tight_true, caller_true);
+  }
+}
+
 // The incremental PCM (what Optimize uses) gives exactly the full recomputation's clique while
 // the graph grows: vertices and loops appended between calls, false loops among them, the test's
 // options changed and changed back (the cache must be rebuilt, not reused).

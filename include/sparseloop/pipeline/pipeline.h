@@ -12,6 +12,7 @@
 
 #include "sparseloop/core/trajectory.h"
 #include "sparseloop/io/dataset.h"
+#include "sparseloop/io/step_covariance.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/posegraph/pose_graph.h"
 #include "sparseloop/runtime/loop_closing.h"
@@ -59,10 +60,11 @@ struct PipelineResult {
   std::vector<int64_t> keyframe_frames;  // dataset frame index of each processed keyframe
   size_t skipped_frames = 0;             // unreadable images (see skip_unreadable_frames)
   PoseGraphSummary optimizer;
-  Trajectory raw;                   // raw poses matched to the dataset's frames
-  Trajectory corrected;             // same frames, corrected
-  double bytes_per_keyframe = 0.0;  // mean PackedKeyframe::Bytes() of the stored keyframes
-  double detect_seconds = 0.0;      // wall time of the detection loop (image decode included)
+  Trajectory raw;                      // raw poses matched to the dataset's frames
+  Trajectory corrected;                // same frames, corrected
+  double bytes_per_keyframe = 0.0;     // mean PackedKeyframe::Bytes() of the stored keyframes
+  double detect_seconds = 0.0;         // wall time of the detection loop (image decode included)
+  size_t caller_covariance_steps = 0;  // odometry edges weighted by the caller's covariance
 };
 
 // The online LoopClosing configured as `run` is (same detector, loop edges, odometry weighting,
@@ -77,6 +79,12 @@ LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
 Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, double max_dt,
                                  const std::filesystem::path& raw_path);
 
+// The caller's step covariances (ReadStepCovariances) matched to the dataset's frames with the
+// raw poses' rule: by frame index for KITTI and images: datasets, else by timestamp (nearest
+// within max_dt). A frame without a line gets nothing: its step keeps the odometry model.
+std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFrames(
+    const Dataset& dataset, const std::vector<StepCovariance>& covariances, double max_dt);
+
 // Mapped pixels as written by `sparseloop render` (DIR/mapped/NNNNNN.txt: "u v depth" per line,
 // depth <= 0 unknown). Throws FileError on a malformed file.
 struct MappedPixels {
@@ -88,6 +96,14 @@ MappedPixels ReadMappedPixels(const std::filesystem::path& path);
 PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw_matched,
                            const PipelineOptions& options,
                            const PipelineProgressCallback& progress = {});
+// With the caller's odometry covariances (MatchStepCovariancesToFrames; one entry per frame or
+// empty): the odometry edge ending at a keyframe with one uses its inverse as information
+// (OdometryWeighting::InformationFromCovariance) and PCM its variances. Throws
+// std::invalid_argument naming the frame for a covariance that is not positive definite.
+PipelineResult RunPipeline(
+    const Dataset& dataset, const Trajectory& raw_matched,
+    const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariances,
+    const PipelineOptions& options, const PipelineProgressCallback& progress = {});
 
 // Ground-truth verdict on detected loops: a loop is correct when the GT positions of its two
 // frames are closer than `threshold` (GT units). GT poses are found by timestamp when the GT has

@@ -29,6 +29,11 @@ struct PoseGraphEdge {
   // Information (inverse covariance) in tangent order [upsilon(3), omega(3), sigma]; units
   // 1/unit^2, 1/rad^2, 1/(log scale)^2.
   Matrix7d information = Matrix7d::Identity();
+  // The information is the inverse of a covariance the caller knows for this step
+  // (KeyframeInput::odometry_covariance). PCM's pairwise test then takes this step's variances
+  // from it instead of its own per-step model (PcmOptions); only edges between consecutive
+  // vertices (insertion order) are steps.
+  bool information_from_caller = false;
 };
 
 // A loop closure as the detector measures it (the loop module converts its result into this).
@@ -82,7 +87,10 @@ enum class OutlierRejection {
 // are consistent when the cycle  Z_a * odom(q_a -> q_b) * Z_b^-1 * odom(m_b -> m_a)  is close to
 // identity in the Mahalanobis sense; the largest set of mutually consistent loops (maximum clique)
 // is kept. Odometry over the raw (initial) vertex poses; its covariance is accumulated with the
-// per-step model below, including the lever arm of rotation and scale drift over the chain.
+// per-step model below, including the lever arm of rotation and scale drift over the chain. A step
+// whose edge carries the caller's covariance (PoseGraphEdge::information_from_caller) uses that
+// instead: the largest eigenvalue of its translation block and of its rotation block (rotation
+// also drives the lever arm); the log scale keeps the model's step_scale_sigma.
 struct PcmOptions {
   double confidence = 0.99;                 // chi2 quantile used as the threshold (unitless)
   double step_translation_fraction = 0.05;  // sigma_t per step / step length (unitless)
@@ -276,10 +284,15 @@ class PoseGraph {
 };
 
 // Builds a graph whose vertices are the raw keyframe poses (ids[i] -> raw_world_from_keyframe[i],
-// in time order) and whose edges are the consecutive raw relative poses weighted by `weighting`.
-PoseGraph BuildOdometryGraph(const std::vector<int64_t>& ids,
-                             const std::vector<Sim3d>& raw_world_from_keyframe, VertexType type,
-                             const OdometryWeighting& weighting = {});
+// in time order) and whose edges are the consecutive raw relative poses weighted by `weighting`;
+// where `step_covariance` (empty, or one entry per keyframe: the step ending there) holds the
+// caller's covariance, by its inverse (OdometryWeighting::InformationFromCovariance, flagged
+// PoseGraphEdge::information_from_caller). Throws std::invalid_argument naming the keyframe id
+// for a covariance that is not positive definite.
+PoseGraph BuildOdometryGraph(
+    const std::vector<int64_t>& ids, const std::vector<Sim3d>& raw_world_from_keyframe,
+    VertexType type, const OdometryWeighting& weighting = {},
+    const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariance = {});
 
 // Loop constraint from a 2D-only relative pose (rotation + unit translation direction, as the
 // essential matrix gives). The translation magnitude is unobservable from the two views; it is
