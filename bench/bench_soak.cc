@@ -34,6 +34,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "sparseloop/core/statistics.h"
 #include "sparseloop/runtime/loop_closing.h"
 
 namespace {
@@ -74,13 +75,6 @@ cv::Mat MakeTexture(int size, uint64_t seed) {
       cv::circle(img, p, r / 2 + 2, c, cv::FILLED);
   }
   return img;
-}
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(i), v.end());
-  return v[i];
 }
 
 }  // namespace
@@ -218,8 +212,8 @@ int main(int argc, char** argv) {
       mean /= static_cast<double>(window_ms.size());
       const uint64_t solves = closing.num_solves();
       csv << (i + 1) << ',' << hwm << ',' << rss << ',' << mean << ','
-          << Percentile(window_ms, 0.99) << ',' << loops << ',' << solves << ',' << record_bytes
-          << '\n'
+          << sparseloop::Percentile(window_ms, 0.99) << ',' << loops << ',' << solves << ','
+          << record_bytes << '\n'
           << std::flush;
       rss_points.emplace_back(static_cast<double>(i + 1), 1024.0 * static_cast<double>(rss));
       std::fprintf(stderr, "soak: %ld keyframes, RSS %.1f MiB, %.2f ms/kf, %ld loops, %lu solves\n",

@@ -22,6 +22,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/statistics.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/dataset.h"
@@ -41,12 +42,9 @@ const std::vector<std::string> kDetectOutputFiles = {"loops.csv", "summary.json"
 nlohmann::json Stats(std::vector<double> values) {
   if (values.empty()) return {{"median", 0.0}, {"p90", 0.0}, {"max", 0.0}};
   std::sort(values.begin(), values.end());
-  auto at = [&](double q) {
-    const size_t i =
-        std::min(values.size() - 1, static_cast<size_t>(q * (values.size() - 1) + 0.5));
-    return values[i];
-  };
-  return {{"median", at(0.5)}, {"p90", at(0.9)}, {"max", values.back()}};
+  return {{"median", PercentileOfSorted(values, 0.5)},
+          {"p90", PercentileOfSorted(values, 0.9)},
+          {"max", values.back()}};
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/statistics.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/rosbag_spec.h"
 #include "sparseloop/io/trajectory_io.h"
@@ -36,10 +37,9 @@ Stats ComputeStats(std::vector<double> v) {
   Stats s;
   if (v.empty()) return s;
   std::sort(v.begin(), v.end());
-  auto q = [&](double p) { return v[std::min(v.size() - 1, static_cast<size_t>(p * v.size()))]; };
-  s.median = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-  s.p90 = q(0.9);
-  s.p99 = q(0.99);
+  s.median = PercentileOfSorted(v, 0.5);
+  s.p90 = PercentileOfSorted(v, 0.9);
+  s.p99 = PercentileOfSorted(v, 0.99);
   s.max = v.back();
   double sum = 0;
   for (double x : v) sum += x;

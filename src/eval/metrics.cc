@@ -6,6 +6,7 @@
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/statistics.h"
 
 namespace sparseloop {
 
@@ -29,8 +30,7 @@ ErrorStatistics ComputeStatistics(std::vector<double> errors) {
   std::sort(sorted.begin(), sorted.end());
   stats.min = sorted.front();
   stats.max = sorted.back();
-  const size_t mid = sorted.size() / 2;
-  stats.median = sorted.size() % 2 == 1 ? sorted[mid] : 0.5 * (sorted[mid - 1] + sorted[mid]);
+  stats.median = PercentileOfSorted(sorted, 0.5);
   stats.errors = std::move(errors);
   return stats;
 }
