@@ -218,18 +218,8 @@ CameraIntrinsics TumFreiburgIntrinsics(int freiburg) {
 size_t AttachGtByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt) {
   size_t attached = 0;
   for (auto& f : frames) {
-    auto it = std::lower_bound(gt.poses.begin(), gt.poses.end(), f.timestamp,
-                               [](const StampedPose& p, double t) { return p.timestamp < t; });
-    const StampedPose* best = nullptr;
-    if (it != gt.poses.end()) best = &*it;
-    if (it != gt.poses.begin()) {
-      const StampedPose& prev = *std::prev(it);
-      if (!best ||
-          std::abs(prev.timestamp - f.timestamp) <= std::abs(best->timestamp - f.timestamp))
-        best = &prev;
-    }
-    if (best && std::abs(best->timestamp - f.timestamp) <= max_dt) {
-      f.gt_world_from_cam = best->world_from_cam;
+    if (const auto i = NearestPoseInTime(gt, f.timestamp, max_dt)) {
+      f.gt_world_from_cam = gt.poses[*i].world_from_cam;
       ++attached;
     }
   }

@@ -49,14 +49,8 @@ std::vector<std::optional<size_t>> RowsForFrames(const Dataset& dataset,
     }
     return rows;
   }
-  size_t j = 0;
   for (const auto& f : dataset.frames) {
-    while (j + 1 < keys.size() &&
-           std::abs(keys[j + 1] - f.timestamp) <= std::abs(keys[j] - f.timestamp)) {
-      ++j;
-    }
-    const bool ok = !keys.empty() && std::abs(keys[j] - f.timestamp) <= max_dt;
-    rows.push_back(ok ? std::optional<size_t>(j) : std::nullopt);
+    rows.push_back(NearestInTime(keys, f.timestamp, max_dt, [](double k) { return k; }));
   }
   return rows;
 }
@@ -154,17 +148,9 @@ LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Tra
   for (const auto& p : raw_matched.poses) time_of_frame[p.frame] = p.timestamp;
   auto gt_position = [&](int64_t frame) -> std::optional<Eigen::Vector3d> {
     if (gt.has_timestamps && time_of_frame.count(frame)) {
-      const double t = time_of_frame.at(frame);
-      auto it = std::lower_bound(gt.poses.begin(), gt.poses.end(), t,
-                                 [](const StampedPose& p, double v) { return p.timestamp < v; });
-      const StampedPose* best = nullptr;
-      if (it != gt.poses.end()) best = &*it;
-      if (it != gt.poses.begin() &&
-          (best == nullptr || std::abs((it - 1)->timestamp - t) < std::abs(best->timestamp - t))) {
-        best = &*(it - 1);
-      }
-      if (best && std::abs(best->timestamp - t) <= max_dt) return best->world_from_cam.translation;
-      return std::nullopt;
+      const auto i = NearestPoseInTime(gt, time_of_frame.at(frame), max_dt);
+      if (!i) return std::nullopt;
+      return gt.poses[*i].world_from_cam.translation;
     }
     auto it = gt_by_frame.find(frame);
     if (it == gt_by_frame.end()) return std::nullopt;

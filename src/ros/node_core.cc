@@ -76,7 +76,8 @@ PipelineOptions PipelineOptionsFrom(const NodeParams& params) {
   return p;
 }
 
-// The pose of stamp nearest to `stamp` within `max_dt`, if any.
+// The pose of stamp nearest to `stamp` within `max_dt`, if any: core's NearestInTime rule (the
+// earlier one on a tie), on the map's own O(log n) lookup.
 template <typename T>
 std::optional<T> Nearest(const std::map<double, T>& by_stamp, double stamp, double max_dt) {
   auto after = by_stamp.lower_bound(stamp);
