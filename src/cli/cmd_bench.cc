@@ -12,6 +12,7 @@
 
 #include "cli/cli_util.h"
 #include "cli/command.h"
+#include "cli/report_script.h"
 
 namespace sparseloop::cli {
 
@@ -22,14 +23,23 @@ namespace fs = std::filesystem;
 int RunBench(int argc, char** argv) {
   CLI::App app{"Run the benchmark suite and regenerate docs/BENCHMARKS.md (see scripts/benchmark)"};
   bool quick = false, reuse = false;
-  std::string out, python = "/usr/bin/python3";
+  std::string out, python;
   int jobs = 2;
   app.add_flag("--quick", quick, "the subset that runs in under 10 minutes on 2 cores");
   app.add_flag("--reuse", reuse, "keep experiments whose outputs already exist");
   app.add_option("--out", out, "output folder (default out/bench-quick|full in the source tree)");
   app.add_option("--jobs", jobs, "experiments run in parallel")->capture_default_str();
-  app.add_option("--python", python, "python with matplotlib and numpy")->capture_default_str();
+  app.add_option("--python", python,
+                 "python with matplotlib and numpy (default: as `report` finds it: "
+                 "$SPARSELOOP_PYTHON, python3, /usr/bin/python3)");
   Parse(app, argc, argv);
+  if (python.empty()) python = FindPython();
+  if (python.empty()) {
+    std::cerr << "sparseloop bench: no python3 with matplotlib and numpy found (tried "
+                 "$SPARSELOOP_PYTHON, python3, /usr/bin/python3; install python3-matplotlib or "
+                 "give --python)\n";
+    return 2;
+  }
   const fs::path script = fs::path(SPARSELOOP_SOURCE_DIR) / "scripts" / "benchmark.py";
   if (!fs::is_regular_file(script)) {
     std::cerr << "sparseloop bench: " << script.string()
@@ -47,7 +57,7 @@ int RunBench(int argc, char** argv) {
   for (auto& a : args) c_args.push_back(a.data());
   c_args.push_back(nullptr);
   std::cout.flush();
-  execv(python.c_str(), c_args.data());
+  execvp(python.c_str(), c_args.data());
   std::cerr << "sparseloop bench: cannot run " << python << " (install python3-matplotlib)\n";
   return 2;
 }

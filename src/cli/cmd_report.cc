@@ -5,14 +5,14 @@
 
 #include "cli/cli_util.h"
 #include "cli/command.h"
-#include "sparseloop/synthetic/report.h"
+#include "cli/report_script.h"
 
 namespace sparseloop::cli {
 
 int RunReport(int argc, char** argv) {
   CLI::App app{"Write DIR/report.html: trajectories, loops, errors, timings, P/R"};
   std::string dir, script, python;
-  synthetic::ReportOptions options;
+  cli::ReportOptions options;
   app.add_option("dir", dir,
                  "run folder (poses_gt.txt, poses_raw.txt, trajectory.txt, "
                  "loops.csv, summary.json, timings.csv)")
@@ -26,10 +26,10 @@ int RunReport(int argc, char** argv) {
   CheckNamingFlags({{"false_loop_distance", "--false-loop-distance"}}, [&] { options.Check(); });
   options.script = script;
   options.python = python;
-  const auto result = synthetic::MakeReport(dir, options);
-  if (result.status != synthetic::ReportResult::Status::kOk) {
+  const auto result = cli::MakeReport(dir, options);
+  if (result.status != cli::ReportResult::Status::kOk) {
     std::cerr << "sparseloop report: " << result.message << "\n";
-    return result.status == synthetic::ReportResult::Status::kScriptFailed ? 1 : 2;  // kBadInput: 2
+    return result.status == cli::ReportResult::Status::kScriptFailed ? 1 : 2;  // kBadInput: 2
   }
   std::cout << result.html.string() << "\n";
   return 0;

@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_runner.h"
+#include "cli/report_script.h"
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
-#include "sparseloop/synthetic/report.h"
 #include "test_util.h"
 
 namespace sparseloop::test {
@@ -166,7 +166,7 @@ void FabricateRun(const fs::path& dir) {
 }
 
 TEST(ReportCli, WritesHtmlAndPlots) {
-  if (synthetic::FindPython().empty()) {
+  if (cli::FindPython().empty()) {
     if (InCi()) FAIL() << "python3 with matplotlib required in CI";
     GTEST_SKIP() << "no python3 with matplotlib";
   }
@@ -193,7 +193,7 @@ std::string ReadText(const fs::path& p) {
 // The report agrees with the run: its threshold and counts are summary.json's, rejected loops are
 // drawn as rejected, report.html is one self-contained file, a truncated loops.csv is an error.
 TEST(ReportCli, AgreesWithTheRunAndIsSelfContained) {
-  if (synthetic::FindPython().empty()) {
+  if (cli::FindPython().empty()) {
     if (InCi()) FAIL() << "python3 with matplotlib required in CI";
     GTEST_SKIP() << "no python3 with matplotlib";
   }
@@ -257,7 +257,7 @@ TEST(ReportCli, AgreesWithTheRunAndIsSelfContained) {
 
 TEST(ReportCli, MissingFolderOrTrajectoryFails) {
   EXPECT_EQ(RunCli({"report", "/nonexistent/run"}).exit_code, 2);
-  if (synthetic::FindPython().empty()) GTEST_SKIP() << "no python3 with matplotlib";
+  if (cli::FindPython().empty()) GTEST_SKIP() << "no python3 with matplotlib";
   const auto empty = OutDir("empty");
   const CliResult r = RunCli({"report", empty.string()});
   EXPECT_EQ(r.exit_code, 2);  // a folder without a trajectory is bad input

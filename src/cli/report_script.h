@@ -1,12 +1,12 @@
 #pragma once
-// The HTML run report: locates scripts/report.py and a python3 with matplotlib, and runs it on a
-// run directory. The script writes DIR/report.html (self-contained: plots embedded) and
-// DIR/report_*.png.
+// The HTML run report, CLI-internal (the library never starts a process): locates
+// scripts/report.py and a python3 with matplotlib, and runs it on a run directory. The script
+// writes DIR/report.html (self-contained: plots embedded) and DIR/report_*.png.
 #include <filesystem>
 #include <string>
 #include <vector>
 
-namespace sparseloop::synthetic {
+namespace sparseloop::cli {
 
 struct ReportOptions {
   std::filesystem::path script;  // report.py; empty: FindReportScript()
@@ -37,4 +37,4 @@ std::string FindPython();
 // prints to stdout). Throws std::invalid_argument when `dir` is not a folder.
 ReportResult MakeReport(const std::filesystem::path& dir, const ReportOptions& options = {});
 
-}  // namespace sparseloop::synthetic
+}  // namespace sparseloop::cli

@@ -1,4 +1,4 @@
-#include "sparseloop/synthetic/report.h"
+#include "cli/report_script.h"
 
 #include <spawn.h>
 #include <sys/wait.h>
@@ -12,7 +12,7 @@
 
 extern char** environ;
 
-namespace sparseloop::synthetic {
+namespace sparseloop::cli {
 
 namespace fs = std::filesystem;
 
@@ -120,4 +120,4 @@ ReportResult MakeReport(const fs::path& dir, const ReportOptions& options) {
   return result;
 }
 
-}  // namespace sparseloop::synthetic
+}  // namespace sparseloop::cli
