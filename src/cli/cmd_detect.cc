@@ -70,8 +70,9 @@ int RunDetect(int argc, char** argv) {
 
   PipelineOptions pipeline_options;
   if (!config_path.empty()) LoadConfigFile(config_path, &pipeline_options);
+  ApplyDetectorOverrides(overrides, &pipeline_options.detector);
+  ApplySetFlags(overrides.set, &pipeline_options);
   LoopDetector::Options options = pipeline_options.detector;
-  ApplyDetectorOverrides(overrides, &options);
 
   DatasetOptions dataset_options;
   dataset_options.intrinsics_name = "--intrinsics";

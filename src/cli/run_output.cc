@@ -20,6 +20,7 @@
 #include "sparseloop/io/rosbag_spec.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/pipeline/config.h"
 #include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/search/search_area.h"
 
@@ -103,6 +104,10 @@ void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* o) {
                  "A candidate needs a path from it to the query of at least this many times "
                  "their straight-line distance (detector.min_path_ratio; needs poses; 0: off)")
       ->default_str(fmt::format("{}", defaults.min_path_ratio));
+  app.add_option("--set", o->set,
+                 "KEY=VALUE: any configuration key (after --config and the flags above; "
+                 "repeatable; `sparseloop config --dump` lists the keys), e.g. --set "
+                 "detector.features.max_features=15 --set optimizer.rejection=pcm");
 }
 
 void ApplyDetectorOverrides(const DetectorOverrides& o, LoopDetector::Options* options) {
@@ -151,10 +156,27 @@ bool DatasetHasPoseTopic(const std::string& dataset_spec) {
   return IsRosbagSpec(dataset_spec) && !ParseRosbagSpec(dataset_spec).pose.empty();
 }
 
+void ApplySetFlags(const std::vector<std::string>& set, PipelineOptions* options) {
+  for (const std::string& arg : set) {
+    const size_t eq = arg.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw std::invalid_argument(fmt::format(
+          "--set {}: expected KEY=VALUE (e.g. detector.features.max_features=15)", arg));
+    }
+    try {
+      ApplyConfigOverride(arg.substr(0, eq), arg.substr(eq + 1), options);
+      options->Check();
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(fmt::format("--set {}: {}", arg, e.what()));
+    }
+  }
+}
+
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
   ApplyDetectorOverrides(flags.detector, &options.detector);
+  ApplySetFlags(flags.detector.set, &options);
   if (flags.poses.empty() && !DatasetHasPoseTopic(flags.dataset) &&
       options.detector.search.strategy != SearchStrategy::kGlobal) {
     // Without poses only the global search is defined.

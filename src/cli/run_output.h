@@ -27,6 +27,7 @@ struct DetectorOverrides {
   std::string search;                    // --search paper | radius | global (empty: keep)
   std::optional<int> exclude_recent;     // --exclude-recent (search.exclude_recent)
   std::optional<double> min_path_ratio;  // --min-path-ratio
+  std::vector<std::string> set;          // --set KEY=VALUE (any configuration key), in order
 };
 
 struct DetectorFlags {
@@ -47,7 +48,10 @@ CameraIntrinsics ParseIntrinsicsFlag(const std::string& text);
 void AddDetectorOverrideFlags(CLI::App& app, DetectorOverrides* overrides);
 // Applies the flags given to `options` and checks them; an invalid value names its flag.
 void ApplyDetectorOverrides(const DetectorOverrides& overrides, LoopDetector::Options* options);
-// Defaults, then --config, then the explicit flags (-K, --search).
+// Applies each --set KEY=VALUE in order (ApplyConfigOverride), checking the options after each;
+// std::invalid_argument naming the --set argument.
+void ApplySetFlags(const std::vector<std::string>& set, PipelineOptions* options);
+// Defaults, then --config, then the explicit flags (-K, --search, ...), then each --set in order.
 // True when --dataset is a rosbag: spec naming a pose=TOPIC (raw poses without --poses).
 bool DatasetHasPoseTopic(const std::string& dataset_spec);
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);

@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "sparseloop/core/error.h"
 
@@ -557,6 +558,44 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     throw FileError(source, 0, "valid option values", e.what());
   }
 }
+void ApplyConfigOverride(const std::string& key, const std::string& value,
+                         PipelineOptions* options) {
+  const auto& keys = ConfigKeys();
+  const auto it =
+      std::find_if(keys.begin(), keys.end(), [&](const ConfigKey& k) { return k.path == key; });
+  if (it == keys.end()) {
+    // The known keys whose last component matches, else those sharing the first component.
+    const std::string leaf =
+        key.substr(key.rfind('.') == std::string::npos ? 0 : key.rfind('.') + 1);
+    std::vector<std::string> close;
+    for (const ConfigKey& k : keys) {
+      if (k.path.substr(k.path.rfind('.') + 1) == leaf) close.push_back(k.path);
+    }
+    if (close.empty() && leaf.size() >= 4) {
+      for (const ConfigKey& k : keys) {
+        if (k.path.find(leaf) != std::string::npos) close.push_back(k.path);
+      }
+    }
+    if (close.size() > 5) close.resize(5);
+    throw std::invalid_argument(fmt::format(
+        "{}: expected a configuration key{}, got an unknown key (`sparseloop config --dump` "
+        "lists them)",
+        key, close.empty() ? "" : fmt::format(" such as {}", fmt::join(close, ", "))));
+  }
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(value);
+  } catch (const nlohmann::json::exception&) {
+    j = value;  // not JSON: a bare word, read as a string
+  }
+  try {
+    it->set(j, options);
+  } catch (const ConfigValueError& e) {
+    throw std::invalid_argument(fmt::format("{}: expected {}, got {}", key, e.expected, e.got));
+  }
+  options->detector.verify.seed = options->detector.seed;
+}
+
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options) {
   std::ifstream in(path);
   if (!in) throw FileError(path.string(), 0, "a readable JSON configuration file");

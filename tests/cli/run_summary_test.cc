@@ -159,6 +159,43 @@ fs::path ShortSequence(const fs::path& dir, int frames) {
   return copy;
 }
 
+// --set KEY=VALUE reaches any configuration key from the command line, after --config and the
+// shorthand flags; a bad key or value is refused before the run, naming the --set argument.
+TEST(CliRunSummary, SetOverridesAnyConfigurationKey) {
+  const auto dir = TempDir();
+  const fs::path seq = ShortSequence(dir, 6);
+  const fs::path config = dir / "config.json";
+  {
+    std::ofstream f(config);
+    f << R"({"detector": {"features": {"max_features": 40}}})";
+  }
+  const CliResult r =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--config", config.string(), "-K",
+              "30", "--set", "detector.features.max_features=15", "--set",
+              "detector.features.ranking=response", "--out", (dir / "a").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = ReadJson(dir / "a" / "summary.json");
+  EXPECT_EQ(summary["features_per_keyframe"].get<int>(), 15);
+  EXPECT_EQ(summary["config"]["features"]["max_features"].get<int>(), 15);
+  EXPECT_EQ(summary["config"]["features"]["ranking"].get<std::string>(), "response");
+  struct Case {
+    std::string arg, message;
+  };
+  const Case cases[] = {
+      {"detector.features.max_features=0", "--set detector.features.max_features=0:"},
+      {"detector.features.max_features=many", "expected an integer"},
+      {"detector.feature.max_features=15", "such as detector.features.max_features"},
+      {"max_features", "expected KEY=VALUE"},
+  };
+  for (const Case& c : cases) {
+    const CliResult b = RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--set", c.arg,
+                                "--out", (dir / "b").string()});
+    EXPECT_EQ(b.exit_code, 2) << c.arg;
+    EXPECT_NE(b.err.find(c.message), std::string::npos) << b.err;
+    EXPECT_FALSE(fs::exists(dir / "b")) << c.arg;
+  }
+}
+
 // A short sequence finds nothing with the default exclude_recent (10): detect says why, per frame
 // (frames.csv) and counted (summary.json status_counts, stdout), and --exclude-recent fixes it.
 TEST(CliRunSummary, DetectSaysWhyNothingWasFound) {

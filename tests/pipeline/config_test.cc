@@ -149,6 +149,52 @@ TEST(Config, EveryRegisteredKeyIsReadAndWritten) {
   }
 }
 
+// `--set KEY=VALUE` (ApplyConfigOverride) reaches every registered key: another valid value, given
+// as the text a shell passes (JSON, or a bare word for enum names), is what the key then holds.
+TEST(Config, EveryRegisteredKeyCanBeSetFromText) {
+  const nlohmann::json defaults = ConfigToJson(PipelineOptions{});
+  for (const ConfigKey& key : ConfigKeys()) {
+    SCOPED_TRACE(key.path);
+    const auto pointer =
+        nlohmann::json::json_pointer("/" + std::regex_replace(key.path, std::regex(R"(\.)"), "/"));
+    const nlohmann::json before = defaults.contains(pointer) ? defaults[pointer] : nlohmann::json();
+    const nlohmann::json other = OtherValue(key, before);
+    const std::string text = other.is_string() ? other.get<std::string>() : other.dump();
+    PipelineOptions o;
+    ASSERT_NO_THROW(ApplyConfigOverride(key.path, text, &o)) << text;
+    EXPECT_EQ(key.get(o), other) << text;
+  }
+}
+
+TEST(Config, OverrideErrorsNameTheKeyAndWhatFits) {
+  PipelineOptions o;
+  auto message = [&](const std::string& key, const std::string& value) {
+    try {
+      ApplyConfigOverride(key, value, &o);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string unknown = message("detector.features.max_feature", "15");
+  EXPECT_NE(unknown.find("detector.features.max_feature: expected a configuration key"),
+            std::string::npos)
+      << unknown;
+  EXPECT_NE(unknown.find("detector.features.max_features"), std::string::npos) << unknown;
+  EXPECT_NE(message("max_features", "15").find("such as detector.features.max_features"),
+            std::string::npos);
+  const std::string type = message("detector.features.max_features", "many");
+  EXPECT_NE(type.find("expected an integer"), std::string::npos) << type;
+  const std::string name = message("optimizer.rejection", "pcmm");
+  EXPECT_NE(name.find("optimizer.rejection: expected"), std::string::npos) << name;
+  EXPECT_NE(name.find("pcm"), std::string::npos) << name;
+  // Quoted and bare strings are the same value.
+  ApplyConfigOverride("optimizer.rejection", "\"switchable\"", &o);
+  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kSwitchable);
+  ApplyConfigOverride("optimizer.rejection", "pcm", &o);
+  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kPcm);
+}
+
 // `config --dump`: the defaults plus a "doc" line per key; read back unchanged, from a file too.
 TEST(Config, DumpRoundTripsAndDocumentsEveryKey) {
   const PipelineOptions defaults;

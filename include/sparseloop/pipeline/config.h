@@ -49,6 +49,15 @@ const std::vector<ConfigKey>& ConfigKeys();
 // std::invalid_argument from Check() on an invalid value.
 void ApplyConfig(const nlohmann::json& config, const std::string& source, PipelineOptions* options);
 
+// One key set from the text a command line gives (`--set detector.features.max_features=15`): the
+// text is read as JSON when it parses as JSON (numbers, true / false, [x, y, z], "quoted"), else
+// as a string, so enum names need no quotes (`--set optimizer.rejection=pcm`). Only the key is
+// applied; the caller checks the whole options afterwards. Throws std::invalid_argument
+// "KEY: expected ..., got ..." for an unknown key (naming the closest known keys) or a value that
+// does not fit the key's type.
+void ApplyConfigOverride(const std::string& key, const std::string& value,
+                         PipelineOptions* options);
+
 // Reads a JSON file and applies it (FileError with line on a JSON syntax error).
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options);
 
