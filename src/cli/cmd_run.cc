@@ -90,16 +90,16 @@ int RunRun(int argc, char** argv) {
   const std::string raw_source = flags.poses.empty() ? dataset.raw_poses_source : flags.poses;
   std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> step_covariances;
   if (!covariance_path.empty()) {
-    step_covariances = MatchStepCovariancesToFrames(dataset, ReadStepCovariances(covariance_path),
-                                                    options.raw_association_max_dt);
+    const auto rows = ReadStepCovariances(covariance_path);
+    try {
+      step_covariances =
+          MatchStepCovariancesToFrames(dataset, rows, options.raw_association_max_dt);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(
+          fmt::format("--odometry-covariance {}: {}", covariance_path, e.what()));
+    }
     const auto with = std::count_if(step_covariances.begin(), step_covariances.end(),
                                     [](const auto& c) { return c.has_value(); });
-    if (with == 0) {
-      throw std::invalid_argument(fmt::format(
-          "--odometry-covariance {}: no line matches a frame of the dataset (keys are {})",
-          covariance_path,
-          dataset.kind == "kitti" || dataset.kind == "images" ? "frame indices" : "timestamps"));
-    }
     Logger().info("run: the caller's odometry covariance for {} of {} frames ({})", with,
                   step_covariances.size(), covariance_path);
   }

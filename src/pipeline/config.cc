@@ -475,22 +475,33 @@ const std::set<std::string>& Groups() {
   return groups;
 }
 
-void ReadObject(const nlohmann::json& j, const std::string& prefix, const std::string& source,
-                PipelineOptions* options) {
+// The registered key with this dotted path, or null.
+const ConfigKey* FindKey(const std::string& path) {
   static const std::map<std::string, const ConfigKey*> by_path = [] {
     std::map<std::string, const ConfigKey*> m;
     for (const ConfigKey& key : ConfigKeys()) m[key.path] = &key;
     return m;
   }();
+  const auto it = by_path.find(path);
+  return it == by_path.end() ? nullptr : it->second;
+}
+
+// Options that mirror another option, set after every change of the configuration.
+void SyncMirroredOptions(PipelineOptions* options) {
+  options->detector.verify.seed = options->detector.seed;
+}
+
+void ReadObject(const nlohmann::json& j, const std::string& prefix, const std::string& source,
+                PipelineOptions* options) {
   auto fail = [&](const std::string& path, const std::string& expected, const std::string& got) {
     throw FileError(source, 0, fmt::format("{} for \"{}\"", expected, path), got);
   };
   if (!j.is_object()) fail(prefix.empty() ? "<root>" : prefix, "a JSON object", "");
   for (auto it = j.begin(); it != j.end(); ++it) {
     const std::string path = prefix.empty() ? it.key() : prefix + "." + it.key();
-    if (const auto key = by_path.find(path); key != by_path.end()) {
+    if (const ConfigKey* key = FindKey(path)) {
       try {
-        key->second->set(*it, options);
+        key->set(*it, options);
       } catch (const ConfigValueError& e) {
         fail(path, e.expected, e.got);
       }
@@ -551,7 +562,7 @@ const std::vector<ConfigKey>& ConfigKeys() {
 void ApplyConfig(const nlohmann::json& config, const std::string& source,
                  PipelineOptions* options) {
   ReadObject(config, "", source, options);
-  options->detector.verify.seed = options->detector.seed;
+  SyncMirroredOptions(options);
   try {
     options->Check();
   } catch (const std::invalid_argument& e) {
@@ -560,11 +571,10 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
 }
 void ApplyConfigOverride(const std::string& key, const std::string& value,
                          PipelineOptions* options) {
-  const auto& keys = ConfigKeys();
-  const auto it =
-      std::find_if(keys.begin(), keys.end(), [&](const ConfigKey& k) { return k.path == key; });
-  if (it == keys.end()) {
-    // The known keys whose last component matches, else those sharing the first component.
+  const ConfigKey* found = FindKey(key);
+  if (found == nullptr) {
+    // The known keys whose last component matches, else those containing it (4+ characters).
+    const auto& keys = ConfigKeys();
     const std::string leaf =
         key.substr(key.rfind('.') == std::string::npos ? 0 : key.rfind('.') + 1);
     std::vector<std::string> close;
@@ -589,11 +599,11 @@ void ApplyConfigOverride(const std::string& key, const std::string& value,
     j = value;  // not JSON: a bare word, read as a string
   }
   try {
-    it->set(j, options);
+    found->set(j, options);
   } catch (const ConfigValueError& e) {
     throw std::invalid_argument(fmt::format("{}: expected {}, got {}", key, e.expected, e.got));
   }
-  options->detector.verify.seed = options->detector.seed;
+  SyncMirroredOptions(options);
 }
 
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options) {

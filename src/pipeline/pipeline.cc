@@ -97,8 +97,15 @@ std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFr
   for (const auto& c : covariances) keys.push_back(c.key);
   const auto rows = RowsForFrames(dataset, keys, by_time, max_dt);
   std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> out;
+  bool any = false;
   for (const auto& row : rows) {
     out.push_back(row ? std::optional(covariances[*row].covariance) : std::nullopt);
+    any |= row.has_value();
+  }
+  if (!any) {
+    throw std::invalid_argument(
+        fmt::format("no line matches a frame of the dataset (keys are {})",
+                    by_time ? fmt::format("timestamps, within {} s", max_dt) : "frame indices"));
   }
   return out;
 }

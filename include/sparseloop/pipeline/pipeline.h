@@ -81,7 +81,8 @@ Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, 
 
 // The caller's step covariances (ReadStepCovariances) matched to the dataset's frames with the
 // raw poses' rule: by frame index for KITTI and images: datasets, else by timestamp (nearest
-// within max_dt). A frame without a line gets nothing: its step keeps the odometry model.
+// within max_dt). A frame without a line gets nothing: its step keeps the odometry model. Throws
+// std::invalid_argument saying which keys were expected when no line matches any frame.
 std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFrames(
     const Dataset& dataset, const std::vector<StepCovariance>& covariances, double max_dt);
 
