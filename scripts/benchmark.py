@@ -891,10 +891,10 @@ def targets_section(res):
                              f"{fmt(fg['bytes_per_keyframe'], 0)} B)",
                              "met" if r >= 50 else "**missed**",
                              "" if r >= 50 else
-                             f"1/50 is {fmt(budget, 0)} B; a record costs 32 B descriptor + 12 B "
-                             "keypoint + 4 B depth per feature plus ~180 B fixed (Sim(3) raw pose, "
-                             "ids, focal, three vector headers), so even K = 15 is over; "
-                             "a packed record (one buffer, half-precision keypoints) would fit"])
+                             f"1/50 is {fmt(budget, 0)} B; a packed record costs 38 B per feature "
+                             "(32 B descriptor, 4 B keypoint, 2 B depth) plus 56 B fixed (48 B "
+                             "header, 8 B owning pointer; include/sparseloop/core/packed_keyframe.h),"
+                             f" so only K <= {max(0, int((budget - 56) // 38))} fits"])
     else:
         rows.append(["baselines", "bench/configs/full_global.json missing", "**not measured**",
                      ""])
