@@ -30,110 +30,214 @@ const std::vector<std::string> kRunOutputFiles = {
     "trajectory.txt", "trajectory_kitti.txt", "poses_raw.txt", "poses_gt.txt", "loops.csv",
     "timings.csv",    "pr_curve.csv",         "gt_loops.txt",  "summary.json", "frames.csv"};
 
-int RunRun(int argc, char** argv) {
-  CLI::App app{"Detect loops, optimise the pose graph and write the corrected trajectory"};
-  DetectorFlags flags;
-  AddDetectorFlags(app, &flags);
+// The flags of `run` beyond the shared detector flags.
+struct RunFlags {
+  DetectorFlags detector;
   std::string gt_path, vertex, map_path, covariance_path;
-  double gt_loop_distance = -1.0;
-  app.add_option("--gt", gt_path, "Ground-truth trajectory (TUM/KITTI/EuRoC) for evaluation");
-  app.add_option("--vertex", vertex,
+  double gt_loop_distance = -1.0;  // -1: not given (the default)
+  std::optional<int64_t> gt_min_gap;
+  std::optional<double> gt_min_path;
+};
+
+void AddRunFlags(CLI::App& app, RunFlags* f) {
+  AddDetectorFlags(app, &f->detector);
+  app.add_option("--gt", f->gt_path, "Ground-truth trajectory (TUM/KITTI/EuRoC) for evaluation");
+  app.add_option("--vertex", f->vertex,
                  "Pose-graph vertices: sim3 (monocular, default) | se3 (metric poses)")
       ->check(CLI::IsMember({"sim3", "se3"}));
-  app.add_option("--odometry-covariance", covariance_path,
+  app.add_option("--odometry-covariance", f->covariance_path,
                  "The vSLAM's covariance of each keyframe step: 'key' + 21 (upper triangle) or 36 "
                  "numbers per line, key = timestamp (frame index for KITTI / images:); steps "
                  "without a line keep the odometry model (docs/FORMATS.md)");
-  app.add_option("--map", map_path,
+  app.add_option("--map", f->map_path,
                  "Persistent map database (SQLite): earlier sessions in it are loaded for "
                  "multi-session loop closure, and this run is stored as a new session");
-  app.add_option("--gt-loop-distance", gt_loop_distance,
+  app.add_option("--gt-loop-distance", f->gt_loop_distance,
                  "A detected loop is 'correct' when the GT positions of its frames are closer "
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
-  std::optional<int64_t> gt_min_gap;
-  std::optional<double> gt_min_path;
-  app.add_option("--gt-min-gap", gt_min_gap,
+  app.add_option("--gt-min-gap", f->gt_min_gap,
                  "GT revisits (loop recall): at least this many frames between the two frames "
                  "(default: the detector's search.exclude_recent, at least 1)")
       ->check(IntegerAtLeast(1));
-  app.add_option("--gt-min-path", gt_min_path,
+  app.add_option("--gt-min-path", f->gt_min_path,
                  "GT revisits (loop recall): at least this much GT path between the two frames, "
                  "so that driving on is not a revisit (GT units; default: 4 x the GT loop "
                  "distance; 0: off)");
-  Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", flags.out, kRunOutputFiles);
-  if (gt_min_path && !(std::isfinite(*gt_min_path) && *gt_min_path >= 0.0)) {
-    throw std::invalid_argument(
-        fmt::format("--gt-min-path must be a path length >= 0, got {}", *gt_min_path));
-  }
-  // Checked now, not after the run: -1 (not given) means the default.
-  if (gt_loop_distance != -1.0 && !(std::isfinite(gt_loop_distance) && gt_loop_distance > 0.0)) {
-    throw std::invalid_argument(
-        fmt::format("--gt-loop-distance must be a distance > 0, got {}", gt_loop_distance));
-  }
+}
 
-  PipelineOptions options = PipelineOptionsFromFlags(flags);
-  if (!vertex.empty())
-    options.vertex_type = vertex == "sim3" ? VertexType::kSim3 : VertexType::kSe3;
-  options.map_path = map_path;
-  options.Check();
-
+// Checked now, not after the run.
+void CheckRunFlags(const RunFlags& f) {
+  CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
+  if (f.gt_min_path && !(std::isfinite(*f.gt_min_path) && *f.gt_min_path >= 0.0)) {
+    throw std::invalid_argument(
+        fmt::format("--gt-min-path must be a path length >= 0, got {}", *f.gt_min_path));
+  }
+  if (f.gt_loop_distance != -1.0 &&
+      !(std::isfinite(f.gt_loop_distance) && f.gt_loop_distance > 0.0)) {
+    throw std::invalid_argument(
+        fmt::format("--gt-loop-distance must be a distance > 0, got {}", f.gt_loop_distance));
+  }
   // Raw poses: --poses, else the rosbag: dataset's pose topic (checked before anything is read).
-  if (flags.poses.empty() && !DatasetHasPoseTopic(flags.dataset)) {
+  if (f.detector.poses.empty() && !DatasetHasPoseTopic(f.detector.dataset)) {
     throw std::invalid_argument(fmt::format(
         "--poses is required for '{}' (raw vSLAM poses; a rosbag: dataset may name a pose=TOPIC "
         "instead)",
-        flags.dataset));
+        f.detector.dataset));
   }
-  const Dataset dataset = OpenDatasetFromFlags(flags);
-  const Trajectory raw = *RawPosesForFrames(flags.poses, dataset, options.raw_association_max_dt);
-  const std::string raw_source = flags.poses.empty() ? dataset.raw_poses_source : flags.poses;
-  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> step_covariances;
-  if (!covariance_path.empty()) {
-    const auto rows = ReadStepCovariances(covariance_path);
-    try {
-      step_covariances =
-          MatchStepCovariancesToFrames(dataset, rows, options.raw_association_max_dt);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(
-          fmt::format("--odometry-covariance {}: {}", covariance_path, e.what()));
-    }
-    const auto with = std::count_if(step_covariances.begin(), step_covariances.end(),
-                                    [](const auto& c) { return c.has_value(); });
-    Logger().info("run: the caller's odometry covariance for {} of {} frames ({})", with,
-                  step_covariances.size(), covariance_path);
+}
+
+using StepCovariances = std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>;
+
+// --odometry-covariance matched to the frames (empty without the flag).
+StepCovariances ReadCovarianceFlag(const std::string& path, const Dataset& dataset, double max_dt) {
+  if (path.empty()) return {};
+  const auto rows = ReadStepCovariances(path);
+  StepCovariances covariances;
+  try {
+    covariances = MatchStepCovariancesToFrames(dataset, rows, max_dt);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(fmt::format("--odometry-covariance {}: {}", path, e.what()));
   }
+  const auto with = std::count_if(covariances.begin(), covariances.end(),
+                                  [](const auto& c) { return c.has_value(); });
+  Logger().info("run: the caller's odometry covariance for {} of {} frames ({})", with,
+                covariances.size(), path);
+  return covariances;
+}
+
+// The ground truth evaluated against: --gt, else the dataset's own (`gt_file` names it). An
+// index-only GT (KITTI) gets each pose's frame timestamp, so that every file written shares one
+// time base (TUM files, report, evo).
+std::optional<Trajectory> GroundTruthFor(const std::string& gt_path, const Dataset& dataset,
+                                         std::string* gt_file) {
   std::optional<Trajectory> gt;
-  std::string gt_file;  // the file evaluated against
   if (!gt_path.empty()) {
     gt = ReadTrajectory(gt_path);
     RequireOrientations("--gt", gt_path, *gt);
-    gt_file = gt_path;
+    *gt_file = gt_path;
     Logger().info("run: evaluating against --gt {} ({} poses){}", gt_path, gt->size(),
                   dataset.has_gt() ? fmt::format("; the dataset's ground truth {} is not used",
                                                  dataset.gt_path.string())
                                    : "");
   } else if (dataset.has_gt()) {
     gt = dataset.GtTrajectory();
-    gt_file = dataset.gt_path.string();
-    Logger().info("run: evaluating against the dataset's ground truth {} ({} poses)", gt_file,
+    *gt_file = dataset.gt_path.string();
+    Logger().info("run: evaluating against the dataset's ground truth {} ({} poses)", *gt_file,
                   gt->size());
   }
+  return gt;
+}
+
+void GiveFrameTimestamps(const Dataset& dataset, Trajectory* gt) {
+  if (gt->has_timestamps) return;
+  std::unordered_map<int64_t, double> time_of_frame;
+  for (const auto& f : dataset.frames) time_of_frame[f.index] = f.timestamp;
+  bool all = true;
+  for (const auto& p : gt->poses) all &= time_of_frame.count(p.frame) > 0;
+  if (!all) return;
+  for (auto& p : gt->poses) p.timestamp = time_of_frame.at(p.frame);
+  gt->has_timestamps = true;
+}
+
+// summary.json: the solve, PCM's rejected loops, and each accepted loop against its own
+// covariance after the solve (LoopResidualCheck).
+void AddOptimizerJson(const PipelineResult& result, nlohmann::json& summary) {
+  const PoseGraphSummary& o = result.optimizer;
+  summary["optimizer"] = {{"status", ToString(o.status)},
+                          {"initial_cost", o.initial_cost},
+                          {"final_cost", o.final_cost},
+                          {"iterations", o.iterations},
+                          {"solves", o.solves},
+                          {"loop_weight_scale", o.loop_weight_scale},
+                          {"solve_seconds", o.solve_seconds},
+                          {"rejection_seconds", o.rejection_seconds},
+                          {"vertices", o.num_vertices},
+                          {"solved_vertices", o.num_solved_vertices},
+                          {"edges", o.num_edges}};
+  nlohmann::json rejected = nlohmann::json::array();
+  for (const auto& r : o.rejected_loop_ids) rejected.push_back({r.query, r.match});
+  summary["rejected_loops"] = rejected;
+  summary["accepted_loops"] =
+      std::count(result.loop_accepted.begin(), result.loop_accepted.end(), true);
+  nlohmann::json loop_checks = nlohmann::json::array();
+  size_t inconsistent = 0;
+  for (const LoopResidualCheck& c : o.loop_checks) {
+    loop_checks.push_back({{"loop", c.loop},
+                           {"query", c.query_id},
+                           {"match", c.match_id},
+                           {"chi2", c.chi2},
+                           {"dof", c.dof},
+                           {"threshold", c.threshold},
+                           {"consistent", c.consistent},
+                           {"translation_error", c.translation_error},
+                           {"rotation_error_rad", c.rotation_error_rad},
+                           {"log_scale_error", c.log_scale_error}});
+    inconsistent += !c.consistent;
+  }
+  summary["loop_checks"] = loop_checks;
+  summary["inconsistent_loops"] = inconsistent;
+}
+
+// Loop precision / recall against GT revisits derived from the GT poses (the loop-truth
+// distance), over every query frame that has a GT partner: summary keys, pr_curve.csv and
+// gt_loops.txt.
+void AddGtLoopEvaluation(const RunFlags& flags, const PipelineOptions& options,
+                         const PipelineResult& result, const Trajectory& gt, const LoopTruth& truth,
+                         const std::filesystem::path& out, nlohmann::json& summary) {
+  AddLoopTruthJson(summary, truth, result.loop_accepted);
+  GtLoopOptions gl;
+  gl.distance = truth.threshold;
+  gl.min_gap = flags.gt_min_gap.value_or(std::max(1, options.detector.search.exclude_recent));
+  gl.min_path = flags.gt_min_path.value_or(4.0 * gl.distance);
+  const std::vector<LoopPair> gt_pairs = DeriveGtLoops(gt, gl);
+  std::vector<Detection> detections;
+  for (const LoopResult& l : result.loops) detections.push_back({l.query_id, l.match_id, l.score});
+  const LoopPrResult pr = EvaluateLoops(detections, gt_pairs);
+  // AddLoopKeys writes flat loop_* keys plus a nested "loops" object; "loops" is our count,
+  // so the object goes under "loop_eval".
+  nlohmann::json loop_eval;
+  AddLoopKeys(loop_eval, &pr);
+  for (auto& [key, value] : loop_eval.items()) {
+    summary[key == "loops" ? "loop_eval" : key] = value;
+  }
+  summary["gt_revisits"] = {{"distance", gl.distance},
+                            {"min_gap", gl.min_gap},
+                            {"min_path", gl.min_path},
+                            {"pairs", gt_pairs.size()}};
+  WritePrCurveCsv(out / "pr_curve.csv", pr);
+  WriteFileAtomically(out / "gt_loops.txt", [&](std::ostream& os) {
+    os << "# query match: GT revisits (distance < " << gl.distance << ", gap >= " << gl.min_gap
+       << " frames, GT path between >= " << gl.min_path << ")\n";
+    for (const LoopPair& p : gt_pairs) os << p.query << ' ' << p.match << '\n';
+  });
+}
+
+int RunRun(int argc, char** argv) {
+  CLI::App app{"Detect loops, optimise the pose graph and write the corrected trajectory"};
+  RunFlags run_flags;
+  AddRunFlags(app, &run_flags);
+  Parse(app, argc, argv);
+  CheckRunFlags(run_flags);
+  const DetectorFlags& flags = run_flags.detector;
+
+  PipelineOptions options = PipelineOptionsFromFlags(flags);
+  if (!run_flags.vertex.empty())
+    options.vertex_type = run_flags.vertex == "sim3" ? VertexType::kSim3 : VertexType::kSe3;
+  options.map_path = run_flags.map_path;
+  options.Check();
+
+  const Dataset dataset = OpenDatasetFromFlags(flags);
+  const Trajectory raw = *RawPosesForFrames(flags.poses, dataset, options.raw_association_max_dt);
+  const std::string raw_source = flags.poses.empty() ? dataset.raw_poses_source : flags.poses;
+  const StepCovariances step_covariances =
+      ReadCovarianceFlag(run_flags.covariance_path, dataset, options.raw_association_max_dt);
+  std::string gt_file;  // the file evaluated against
+  std::optional<Trajectory> gt = GroundTruthFor(run_flags.gt_path, dataset, &gt_file);
   // Every input is read: the folder now holds this run only.
   PrepareRunFolder(flags.out, "run", flags.dataset, kRunOutputFiles,
-                   {flags.config, flags.poses, gt_path, map_path, covariance_path});
-  if (gt && !gt->has_timestamps) {
-    // Index-only GT (KITTI): give each pose its frame's timestamp so that every file written
-    // below shares one time base (TUM files, report, evo).
-    std::unordered_map<int64_t, double> time_of_frame;
-    for (const auto& f : dataset.frames) time_of_frame[f.index] = f.timestamp;
-    bool all = true;
-    for (const auto& p : gt->poses) all &= time_of_frame.count(p.frame) > 0;
-    if (all) {
-      for (auto& p : gt->poses) p.timestamp = time_of_frame.at(p.frame);
-      gt->has_timestamps = true;
-    }
-  }
+                   {flags.config, flags.poses, run_flags.gt_path, run_flags.map_path,
+                    run_flags.covariance_path});
+  if (gt) GiveFrameTimestamps(dataset, &*gt);
 
   ProgressLine progress("run", flags.quiet);
   const PipelineResult result = RunPipeline(
@@ -150,7 +254,7 @@ int RunRun(int argc, char** argv) {
   if (gt) WriteTrajectory(out / "poses_gt.txt", *gt, TrajectoryFormat::kTum);
 
   std::optional<LoopTruth> truth;
-  if (gt) truth = ClassifyLoopsAgainstGt(result.loops, *gt, raw, gt_loop_distance);
+  if (gt) truth = ClassifyLoopsAgainstGt(result.loops, *gt, raw, run_flags.gt_loop_distance);
   {
     // In-session loops first (accepted / correct known), then loops into earlier map sessions.
     std::vector<LoopResult> rows = result.loops;
@@ -168,76 +272,18 @@ int RunRun(int argc, char** argv) {
   summary["poses_file"] = raw_source;  // --poses, or the rosbag: pose topic
   if (gt) summary["gt_file"] = gt_file;
   summary["skipped_frames"] = result.skipped_frames;
-  if (!covariance_path.empty()) {
-    summary["odometry_covariance"] = {{"file", covariance_path},
+  if (!run_flags.covariance_path.empty()) {
+    summary["odometry_covariance"] = {{"file", run_flags.covariance_path},
                                       {"steps", result.caller_covariance_steps}};
   }
   summary["cross_session_loops"] = result.cross_session_loops.size();
-  summary["optimizer"] = {{"status", ToString(result.optimizer.status)},
-                          {"initial_cost", result.optimizer.initial_cost},
-                          {"final_cost", result.optimizer.final_cost},
-                          {"iterations", result.optimizer.iterations},
-                          {"solves", result.optimizer.solves},
-                          {"loop_weight_scale", result.optimizer.loop_weight_scale},
-                          {"solve_seconds", result.optimizer.solve_seconds},
-                          {"rejection_seconds", result.optimizer.rejection_seconds},
-                          {"vertices", result.optimizer.num_vertices},
-                          {"solved_vertices", result.optimizer.num_solved_vertices},
-                          {"edges", result.optimizer.num_edges}};
-  nlohmann::json rejected = nlohmann::json::array();
-  for (const auto& r : result.optimizer.rejected_loop_ids) rejected.push_back({r.query, r.match});
-  summary["rejected_loops"] = rejected;
-  summary["accepted_loops"] =
-      std::count(result.loop_accepted.begin(), result.loop_accepted.end(), true);
-  // After the solve, each accepted loop against its own covariance (LoopResidualCheck).
-  nlohmann::json loop_checks = nlohmann::json::array();
-  size_t inconsistent = 0;
-  for (const LoopResidualCheck& c : result.optimizer.loop_checks) {
-    loop_checks.push_back({{"loop", c.loop},
-                           {"query", c.query_id},
-                           {"match", c.match_id},
-                           {"chi2", c.chi2},
-                           {"dof", c.dof},
-                           {"threshold", c.threshold},
-                           {"consistent", c.consistent},
-                           {"translation_error", c.translation_error},
-                           {"rotation_error_rad", c.rotation_error_rad},
-                           {"log_scale_error", c.log_scale_error}});
-    inconsistent += !c.consistent;
+  if (!run_flags.map_path.empty()) {
+    summary["map"] = {{"path", run_flags.map_path},
+                      {"session", result.map_session},
+                      {"prior_keyframes", result.prior_keyframes}};
   }
-  summary["loop_checks"] = loop_checks;
-  summary["inconsistent_loops"] = inconsistent;
-  if (truth) {
-    AddLoopTruthJson(summary, *truth, result.loop_accepted);
-    // Loop precision / recall against GT revisits derived from the GT poses (same distance),
-    // over every query frame that has a GT partner.
-    GtLoopOptions gl;
-    gl.distance = truth->threshold;
-    gl.min_gap = gt_min_gap.value_or(std::max(1, options.detector.search.exclude_recent));
-    gl.min_path = gt_min_path.value_or(4.0 * gl.distance);
-    const std::vector<LoopPair> gt_pairs = DeriveGtLoops(*gt, gl);
-    std::vector<Detection> detections;
-    for (const LoopResult& l : result.loops)
-      detections.push_back({l.query_id, l.match_id, l.score});
-    const LoopPrResult pr = EvaluateLoops(detections, gt_pairs);
-    // AddLoopKeys writes flat loop_* keys plus a nested "loops" object; "loops" is our count,
-    // so the object goes under "loop_eval".
-    nlohmann::json loop_eval;
-    AddLoopKeys(loop_eval, &pr);
-    for (auto& [key, value] : loop_eval.items()) {
-      summary[key == "loops" ? "loop_eval" : key] = value;
-    }
-    summary["gt_revisits"] = {{"distance", gl.distance},
-                              {"min_gap", gl.min_gap},
-                              {"min_path", gl.min_path},
-                              {"pairs", gt_pairs.size()}};
-    WritePrCurveCsv(out / "pr_curve.csv", pr);
-    WriteFileAtomically(out / "gt_loops.txt", [&](std::ostream& os) {
-      os << "# query match: GT revisits (distance < " << gl.distance << ", gap >= " << gl.min_gap
-         << " frames, GT path between >= " << gl.min_path << ")\n";
-      for (const LoopPair& p : gt_pairs) os << p.query << ' ' << p.match << '\n';
-    });
-  }
+  AddOptimizerJson(result, summary);
+  if (truth) AddGtLoopEvaluation(run_flags, options, result, *gt, *truth, out, summary);
   summary["config"] = ConfigToJson(options);
 
   std::optional<TrajectoryEvaluation> eval_raw, eval_corrected;

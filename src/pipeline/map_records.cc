@@ -56,9 +56,13 @@ KeyframeRecord FromStoredKeyframe(const StoredKeyframe& s, float fallback_focal_
   return r;
 }
 
-size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopDetector* detector,
-                         int64_t skip_session) {
-  SL_CHECK_MSG(detector != nullptr, "LoadPriorSessions needs a detector");
+namespace {
+
+// Reads each earlier session into `sink` (LoopDetector or LoopClosing: AddPriorKeyframes).
+template <typename Sink>
+size_t LoadSessions(const MapDatabase& map, float fallback_focal_px, int64_t skip_session,
+                    Sink* sink) {
+  SL_CHECK_MSG(sink != nullptr, "LoadPriorSessions needs a detector or a loop closer");
   size_t loaded = 0;
   for (int64_t session : map.Sessions()) {
     if (session == skip_session) continue;
@@ -68,11 +72,23 @@ size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopDe
     records.reserve(stored.size());
     for (const auto& s : stored) records.push_back(FromStoredKeyframe(s, fallback_focal_px));
     loaded += records.size();
-    detector->AddPriorKeyframes(session, std::move(records));
+    sink->AddPriorKeyframes(session, std::move(records));
     Logger().info("{}: loaded session {} ({} keyframes) for multi-session detection",
                   map.path().string(), session, stored.size());
   }
   return loaded;
+}
+
+}  // namespace
+
+size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopDetector* detector,
+                         int64_t skip_session) {
+  return LoadSessions(map, fallback_focal_px, skip_session, detector);
+}
+
+size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopClosing* closing,
+                         int64_t skip_session) {
+  return LoadSessions(map, fallback_focal_px, skip_session, closing);
 }
 
 }  // namespace sparseloop

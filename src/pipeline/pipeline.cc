@@ -175,16 +175,6 @@ LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Tra
   return truth;
 }
 
-namespace {
-
-double LocalStep(const Trajectory& raw, size_t i) {
-  const size_t a = i > 0 ? i - 1 : 0;
-  const size_t b = i > 0 ? i : std::min<size_t>(1, raw.poses.size() - 1);
-  return (raw.poses[b].world_from_cam.translation - raw.poses[a].world_from_cam.translation).norm();
-}
-
-}  // namespace
-
 LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
                                            bool solve_while_running) {
   LoopClosing::Options o;
@@ -197,49 +187,137 @@ LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
   return o;
 }
 
-PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
-                           const PipelineOptions& options,
-                           const PipelineProgressCallback& progress) {
-  return RunPipeline(dataset, raw, {}, options, progress);
+namespace {
+
+using StepCovariances = std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>;
+
+// Frame i of the dataset as a keyframe: image (empty when unreadable), intrinsics, the raw pose
+// and the caller's step covariance when given, the mapped pixels when `mapped_dir` has a file.
+KeyframeInput FrameKeyframe(const Dataset& dataset, size_t i, const Trajectory* raw,
+                            const StepCovariances& step_covariances,
+                            const std::filesystem::path& mapped_dir) {
+  const DatasetFrame& frame = dataset.frames[i];
+  KeyframeInput input;
+  input.id = frame.index;
+  input.timestamp = frame.timestamp;
+  input.image = ReadFrameGray(dataset, frame);
+  if (input.image.empty()) return input;
+  input.intrinsics = dataset.intrinsics;
+  if (raw) input.world_from_cam = Sim3d(raw->poses[i].world_from_cam);
+  if (!step_covariances.empty()) input.odometry_covariance = step_covariances[i];
+  if (!mapped_dir.empty()) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(frame.index));
+    const auto path = mapped_dir / name;
+    if (std::filesystem::exists(path)) {
+      MappedPixels m = ReadMappedPixels(path);
+      input.mapped_pixels = std::move(m.pixels);
+      input.mapped_depths = std::move(m.depths);
+    }
+  }
+  return input;
 }
 
-PipelineResult RunPipeline(
-    const Dataset& dataset, const Trajectory& raw,
-    const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariances,
-    const PipelineOptions& options, const PipelineProgressCallback& progress) {
+// The run's session in the persistent map (options.map_path), earlier sessions loaded into
+// `closing` first (options.load_map_sessions).
+std::unique_ptr<MapDatabase> OpenMapSession(const Dataset& dataset, const PipelineOptions& options,
+                                            LoopClosing* closing, PipelineResult* result) {
+  if (options.map_path.empty()) return nullptr;
+  auto map = MapDatabase::Open(options.map_path);
+  if (options.load_map_sessions) {
+    const float focal = static_cast<float>(0.5 * (dataset.intrinsics.fx + dataset.intrinsics.fy));
+    result->prior_keyframes = LoadPriorSessions(*map, focal, closing);
+  }
+  result->map_session = map->BeginSession(options.session_label);
+  return map;
+}
+
+// Loops of this run (accepted as the graph decided) and into earlier sessions (accepted = 0:
+// not in the graph, their world frame differs).
+void StoreLoops(const PipelineResult& result, MapDatabase* map) {
+  const int64_t session = result.map_session;
+  for (size_t k = 0; k < result.loops.size(); ++k) {
+    const LoopResult& l = result.loops[k];
+    map->PutLoop({session, l.query_id, session, l.match_id, l.inliers, l.score, l.match_from_query,
+                  result.loop_accepted[k]});
+  }
+  for (const LoopResult& l : result.cross_session_loops) {
+    map->PutLoop({session, l.query_id, l.match_session, l.match_id, l.inliers, l.score,
+                  l.match_from_query, false});
+  }
+  map->Flush();
+}
+
+// Every frame's corrected pose: the graph keyframes from the solve (raw poses without one), the
+// frames between them (skipped frames) through the interpolated correction.
+Trajectory CorrectedTrajectory(const Trajectory& raw, const CorrectedKeyframes& keyframes,
+                               const std::unordered_map<int64_t, size_t>& row_of_id) {
+  if (keyframes.ids.empty()) return raw;  // every frame skipped
+  std::vector<StampedSim3> raw_kf, corrected_kf, raw_all;
+  for (size_t k = 0; k < keyframes.ids.size(); ++k) {
+    const StampedPose& p = raw.poses[row_of_id.at(keyframes.ids[k])];
+    raw_kf.push_back({p.timestamp, Sim3d(p.world_from_cam)});
+    corrected_kf.push_back({p.timestamp, keyframes.world_from_keyframe[k]});
+  }
+  for (const auto& p : raw.poses) raw_all.push_back({p.timestamp, Sim3d(p.world_from_cam)});
+  const auto corrected_all = CorrectFramePoses(raw_kf, corrected_kf, raw_all);
+  Trajectory corrected = raw;
+  for (size_t i = 0; i < raw.poses.size(); ++i) {
+    corrected.poses[i].world_from_cam = corrected_all[i].world_from_cam.ToRigid();
+  }
+  return corrected;
+}
+
+// The graph's verdict on each loop of the run (loop_index: its index in the graph's loop list,
+// -1 when it did not go to the graph) and the solve's summary.
+void TakeSolve(const LoopClosing& closing, const std::vector<int64_t>& loop_index,
+               PipelineResult* result) {
+  const auto solve = closing.LatestSolve();
+  if (solve) {
+    result->optimizer = solve->summary;
+  } else {
+    result->optimizer.status = PoseGraphStatus::kNothingToDo;
+    result->optimizer.num_vertices = closing.graph().num_vertices();
+    result->optimizer.num_edges = closing.graph().edges().size();
+  }
+  std::vector<bool> rejected(closing.num_loops(), false);
+  for (size_t idx : result->optimizer.rejected_loops) rejected.at(idx) = true;
+  result->loop_accepted.assign(result->loops.size(), false);
+  for (size_t k = 0; k < result->loops.size(); ++k) {
+    result->loop_accepted[k] = loop_index[k] >= 0 && !rejected[static_cast<size_t>(loop_index[k])];
+  }
+}
+
+// The one offline driver (#21): `run` (optimize) and `detect` (not) over one LoopClosing.
+PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
+                          const StepCovariances& step_covariances, const PipelineOptions& options,
+                          bool optimize, const PipelineProgressCallback& progress) {
   options.Check();
-  SL_CHECK_MSG(raw.poses.size() == dataset.frames.size(),
+  SL_CHECK_MSG(raw != nullptr || !optimize, "the pose graph needs raw poses");
+  SL_CHECK_MSG(raw == nullptr || raw->poses.size() == dataset.frames.size(),
                "raw trajectory has {} poses for {} frames; use MatchRawPosesToFrames",
-               raw.poses.size(), dataset.frames.size());
+               raw ? raw->poses.size() : 0, dataset.frames.size());
   SL_CHECK_MSG(step_covariances.empty() || step_covariances.size() == dataset.frames.size(),
                "{} step covariances for {} frames; use MatchStepCovariancesToFrames",
                step_covariances.size(), dataset.frames.size());
   PipelineResult result;
-  result.raw = raw;
-  LoopDetector detector(options.detector);
-
-  std::unique_ptr<MapDatabase> map;
-  int64_t session = 0;
-  if (!options.map_path.empty()) {
-    map = MapDatabase::Open(options.map_path);
-    if (options.load_map_sessions) {
-      const float focal = static_cast<float>(0.5 * (dataset.intrinsics.fx + dataset.intrinsics.fy));
-      LoadPriorSessions(*map, focal, &detector);
-    }
-    session = map->BeginSession(options.session_label);
-  }
+  if (raw) result.raw = *raw;
+  LoopClosing::Options closing_options = LoopClosingOptionsFor(options, false);
+  closing_options.optimize = optimize;
+  LoopClosing closing(std::move(closing_options));
+  std::unique_ptr<MapDatabase> map = OpenMapSession(dataset, options, &closing, &result);
 
   const auto mapped_dir = dataset.root / "mapped";
   const bool have_mapped = options.use_mapped_pixels && std::filesystem::is_directory(mapped_dir);
-  std::vector<size_t> keyframe_rows;  // row in `raw` of each processed keyframe
+  std::unordered_map<int64_t, size_t> row_of_id;  // frame index -> row of the dataset / raw
+  std::vector<int64_t> loop_index;                // per result.loops: index in the graph or -1
+  bool first_in_graph = true;
   Timer detect_timer;
   size_t bytes = 0;
   for (size_t i = 0; i < dataset.frames.size(); ++i) {
     const DatasetFrame& frame = dataset.frames[i];
-    KeyframeInput input;
-    input.id = frame.index;
-    input.timestamp = frame.timestamp;
-    input.image = ReadFrameGray(dataset, frame);
+    const KeyframeInput input = FrameKeyframe(dataset, i, raw, step_covariances,
+                                              have_mapped ? mapped_dir : std::filesystem::path());
     if (input.image.empty()) {
       if (!options.skip_unreadable_frames) {
         throw FileError(frame.image_path.string(), 0, "a readable image");
@@ -249,93 +327,60 @@ PipelineResult RunPipeline(
       ++result.skipped_frames;
       continue;
     }
-    input.intrinsics = dataset.intrinsics;
-    input.world_from_cam = Sim3d(raw.poses[i].world_from_cam);
-    if (have_mapped) {
-      char name[32];
-      std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(frame.index));
-      const auto path = mapped_dir / name;
-      if (std::filesystem::exists(path)) {
-        MappedPixels m = ReadMappedPixels(path);
-        input.mapped_pixels = std::move(m.pixels);
-        input.mapped_depths = std::move(m.depths);
-      }
-    }
-    LoopResult r = detector.Process(input);
-    keyframe_rows.push_back(i);
+    LoopEvent event = closing.AddKeyframe(input);
+    row_of_id[frame.index] = i;
     result.keyframe_frames.push_back(frame.index);
-    const PackedKeyframe& stored = detector.packed_record(frame.index);
+    if (event.in_graph) {
+      if (!first_in_graph && input.odometry_covariance) ++result.caller_covariance_steps;
+      first_in_graph = false;
+    }
+    const PackedKeyframe& stored = closing.detector().packed_record(frame.index);
     bytes += stored.Bytes();
-    if (map) map->PutRecord(session, stored);
-    if (r.detected())
-      (r.match_session == 0 ? result.loops : result.cross_session_loops).push_back(r);
+    if (map) map->PutRecord(result.map_session, stored);
+    LoopResult& r = event.result;
+    if (r.detected() && r.match_session == 0) {
+      result.loops.push_back(r);
+      loop_index.push_back(event.loop_index);
+    } else if (r.detected()) {
+      result.cross_session_loops.push_back(r);
+    }
     result.frame_results.push_back(std::move(r));
     if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
   }
   result.detect_seconds = detect_timer.ElapsedMs() / 1000.0;
-  if (!keyframe_rows.empty()) result.bytes_per_keyframe = double(bytes) / keyframe_rows.size();
+  if (!row_of_id.empty()) result.bytes_per_keyframe = double(bytes) / row_of_id.size();
+  closing.Finish();
 
-  // Pose graph over the processed keyframes.
-  std::vector<int64_t> ids;
-  std::vector<Sim3d> poses;
-  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> covariances;
-  std::unordered_map<int64_t, size_t> row_of_id;
-  for (size_t row : keyframe_rows) {
-    row_of_id[dataset.frames[row].index] = row;
-    ids.push_back(dataset.frames[row].index);
-    poses.emplace_back(raw.poses[row].world_from_cam);
-    if (!step_covariances.empty()) covariances.push_back(step_covariances[row]);
-  }
-  for (size_t k = 1; k < covariances.size(); ++k)
-    result.caller_covariance_steps += covariances[k] ? 1 : 0;
-  result.corrected = raw;
-  result.loop_accepted.assign(result.loops.size(), false);
-  if (ids.size() < 2) return result;
-  PoseGraph graph =
-      BuildOdometryGraph(ids, poses, options.vertex_type, options.odometry, covariances);
-  for (const LoopResult& loop : result.loops) {
-    const size_t q = row_of_id.at(loop.query_id);
-    const size_t m = row_of_id.at(loop.match_id);
-    graph.AddLoop(MakeLoopConstraint(loop, Sim3d(raw.poses[q].world_from_cam),
-                                     Sim3d(raw.poses[m].world_from_cam), LocalStep(raw, q),
-                                     options));
-  }
-  if (!result.loops.empty()) {
-    result.optimizer = graph.Optimize(options.optimizer);
+  if (optimize) {
+    TakeSolve(closing, loop_index, &result);
+    result.corrected = CorrectedTrajectory(*raw, closing.Corrections(), row_of_id);
   } else {
-    result.optimizer.status = PoseGraphStatus::kNothingToDo;
-    result.optimizer.num_vertices = graph.num_vertices();
-    result.optimizer.num_edges = graph.edges().size();
+    result.loop_accepted.assign(result.loops.size(), true);
+    result.corrected = result.raw;
   }
-  std::vector<bool> rejected(result.loops.size(), false);
-  for (size_t idx : result.optimizer.rejected_loops) rejected.at(idx) = true;
-  for (size_t k = 0; k < result.loops.size(); ++k) result.loop_accepted[k] = !rejected[k];
-  if (map) {
-    for (size_t k = 0; k < result.loops.size(); ++k) {
-      const LoopResult& l = result.loops[k];
-      map->PutLoop({session, l.query_id, session, l.match_id, l.inliers, l.score,
-                    l.match_from_query, result.loop_accepted[k]});
-    }
-    for (const LoopResult& l : result.cross_session_loops) {
-      map->PutLoop({session, l.query_id, l.match_session, l.match_id, l.inliers, l.score,
-                    l.match_from_query, false});
-    }
-    map->Flush();
-  }
-
-  // Corrected poses: keyframes from the graph, every raw pose through the interpolated correction.
-  std::vector<StampedSim3> raw_kf, corrected_kf, raw_all;
-  for (size_t k = 0; k < ids.size(); ++k) {
-    const double t = raw.poses[keyframe_rows[k]].timestamp;
-    raw_kf.push_back({t, poses[k]});
-    corrected_kf.push_back({t, graph.Pose(ids[k])});
-  }
-  for (const auto& p : raw.poses) raw_all.push_back({p.timestamp, Sim3d(p.world_from_cam)});
-  const auto corrected_all = CorrectFramePoses(raw_kf, corrected_kf, raw_all);
-  for (size_t i = 0; i < raw.poses.size(); ++i) {
-    result.corrected.poses[i].world_from_cam = corrected_all[i].world_from_cam.ToRigid();
-  }
+  if (map) StoreLoops(result, map.get());
   return result;
+}
+
+}  // namespace
+
+PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
+                           const PipelineOptions& options,
+                           const PipelineProgressCallback& progress) {
+  return RunOffline(dataset, &raw, {}, options, /*optimize=*/true, progress);
+}
+
+PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw,
+                           const StepCovariances& step_covariances, const PipelineOptions& options,
+                           const PipelineProgressCallback& progress) {
+  return RunOffline(dataset, &raw, step_covariances, options, /*optimize=*/true, progress);
+}
+
+PipelineResult RunDetection(const Dataset& dataset, const std::optional<Trajectory>& raw_matched,
+                            const PipelineOptions& options,
+                            const PipelineProgressCallback& progress) {
+  return RunOffline(dataset, raw_matched ? &*raw_matched : nullptr, {}, options,
+                    /*optimize=*/false, progress);
 }
 
 }  // namespace sparseloop

@@ -28,6 +28,12 @@ LoopClosing::LoopClosing(Options options, CorrectionCallback on_correction)
 
 LoopClosing::~LoopClosing() { Finish(); }
 
+void LoopClosing::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+  std::lock_guard<std::mutex> api_lock(api_mutex_);
+  SL_CHECK_MSG(!finished_, "AddPriorKeyframes after Finish(): the loop closer is closed");
+  detector_.AddPriorKeyframes(session, std::move(records));
+}
+
 LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   std::lock_guard<std::mutex> api_lock(api_mutex_);
   SL_CHECK_MSG(!finished_, "AddKeyframe({}) after Finish(): the loop closer is closed",

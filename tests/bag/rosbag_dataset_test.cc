@@ -235,7 +235,8 @@ TEST(RosbagDataset, RunOnTheBagEqualsRunOnTheFolder) {
   }
 }
 
-// `detect` takes the pose topic as --poses: the paper search area, not the global fallback.
+// `detect` takes the pose topic as --poses: the paper search area, not the global fallback. As in
+// `run` (the same driver), the folder's mapped/ pixels are ignored: the bag has none.
 TEST(RosbagDataset, DetectUsesThePoseTopic) {
   const Fixture& fx = TheFixture();
   const fs::path out_bag = test::TempDir("detect_bag") / "out";
@@ -245,7 +246,8 @@ TEST(RosbagDataset, DetectUsesThePoseTopic) {
   ASSERT_EQ(from_bag.exit_code, 0) << from_bag.err;
   const test::CliResult from_dir =
       test::RunCli({"detect", "--dataset", "kitti:" + fx.seq.string(), "--poses",
-                    (fx.seq / "poses_raw.txt").string(), "--out", out_dir.string()});
+                    (fx.seq / "poses_raw.txt").string(), "--set", "use_mapped_pixels=false",
+                    "--out", out_dir.string()});
   ASSERT_EQ(from_dir.exit_code, 0) << from_dir.err;
   const nlohmann::json a = test::ReadJson(out_bag / "summary.json");
   const nlohmann::json b = test::ReadJson(out_dir / "summary.json");

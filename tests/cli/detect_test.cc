@@ -76,6 +76,39 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   EXPECT_GT(summary["total_ms"].get<double>(), 0.0);
 }
 
+// `detect` runs `run`'s driver: an unreadable image is skipped (logged, counted), not fatal, and
+// the stage times go to timings.csv as `run` writes them.
+TEST(CliDetect, SkipsAnUnreadableImageAndWritesTimingsAsRunDoes) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const auto dir = TempDir();
+  const auto images = dir / "images";
+  std::filesystem::copy(DataDir() / "castle_p30_768" / "images", images);
+  std::ofstream(images / "0010.jpg", std::ios::trunc) << "not an image";
+  const auto out = dir / "out";
+  const CliResult r = RunCli({"detect", "--dataset", "images:" + images.string(), "--intrinsics",
+                              kCastleIntrinsics, "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("skipping frame 10"), std::string::npos) << r.err;
+  const auto summary = nlohmann::json::parse(ReadAll(out / "summary.json"));
+  EXPECT_EQ(summary["skipped_frames"].get<int>(), 1);
+  EXPECT_EQ(summary["keyframes"].get<int>(), 29);
+  std::istringstream timings(ReadAll(out / "timings.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(timings, line));
+  EXPECT_EQ(line, "keyframe,status,extract_ms,search_ms,match_ms,verify_ms,total_ms");
+  int rows = 0;
+  bool has_frame_10 = false;
+  while (std::getline(timings, line)) {
+    ++rows;
+    has_frame_10 |= line.rfind("10,", 0) == 0;
+  }
+  EXPECT_EQ(rows, 29);
+  EXPECT_FALSE(has_frame_10);
+  const std::string loops = ReadAll(out / "loops.csv");  // the ring still closes
+  EXPECT_TRUE(loops.find("\n29,") != std::string::npos || loops.find("\n28,") != std::string::npos)
+      << loops;
+}
+
 TEST(CliDetect, SmallKChangesBytesPerKeyframe) {
   SL_REQUIRE_DATA("castle_p30_768");
   const auto out = TempDir();

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <unordered_map>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -100,11 +101,38 @@ KeyframeInput BlankKeyframe(int64_t id, std::optional<Sim3d> pose) {
 
 Sim3d PoseAt(double x) { return Sim3d(1.0, Eigen::Quaterniond::Identity(), {x, 0.0, 0.0}); }
 
+// The batch graph `run` built before it became a driver of LoopClosing (#21): every keyframe's
+// raw pose, odometry edges in order, then every loop edge, solved once. The reference for the
+// graph that LoopClosing's background optimiser grows one keyframe at a time.
+PoseGraphSummary SolveBatchGraph(const Sequence& s, const std::vector<LoopResult>& loops,
+                                 const PipelineOptions& options, std::vector<Sim3d>* corrected) {
+  std::vector<int64_t> ids;
+  std::vector<Sim3d> poses;
+  std::unordered_map<int64_t, size_t> row;
+  for (size_t i = 0; i < s.raw.poses.size(); ++i) {
+    row[s.raw.poses[i].frame] = i;
+    ids.push_back(s.raw.poses[i].frame);
+    poses.emplace_back(s.raw.poses[i].world_from_cam);
+  }
+  PoseGraph graph = BuildOdometryGraph(ids, poses, options.vertex_type, options.odometry);
+  for (const LoopResult& loop : loops) {
+    const size_t q = row.at(loop.query_id);
+    const size_t m = row.at(loop.match_id);
+    const double step = (poses[q].translation - poses[q - 1].translation).norm();
+    graph.AddLoop(MakeLoopConstraint(loop, poses[q], poses[m], step, options));
+  }
+  const PoseGraphSummary summary = graph.Optimize(options.optimizer);
+  for (int64_t id : ids) corrected->push_back(graph.Pose(id));
+  return summary;
+}
+
 // (a) The online API over the frames of `run` finds the same loops and, solving once at Finish
 // (solve_while_running = false), the same corrected trajectory: the same detector on the same
 // input, the same graph (vertices start at the raw poses, same odometry and loop edges, same
 // order) and the same deterministic solve. The tolerance 1e-9 covers only the round-off of
 // RunPipeline returning its keyframes through CorrectFramePoses (correction * raw^-1 * raw).
+// RunPipeline drives a LoopClosing itself; this test feeds one frame by frame through the public
+// API, and checks both against the batch graph solved directly (SolveBatchGraph).
 TEST(LoopClosing, SameLoopsAndTrajectoryAsRunPipeline) {
   const Sequence s = LoadSequence();
   ASSERT_EQ(s.dataset.frames.size(), 60u);
@@ -138,6 +166,16 @@ TEST(LoopClosing, SameLoopsAndTrajectoryAsRunPipeline) {
   EXPECT_EQ(solve->revision, 1u);
   EXPECT_EQ(solve->summary.rejected_loops, offline.optimizer.rejected_loops);
   EXPECT_EQ(solve->summary.final_cost, offline.optimizer.final_cost);
+  // The graph grown keyframe by keyframe is the batch graph: same solve, same poses.
+  std::vector<Sim3d> batch_poses;
+  const PoseGraphSummary batch = SolveBatchGraph(s, loops, popt, &batch_poses);
+  EXPECT_EQ(batch.rejected_loops, solve->summary.rejected_loops);
+  EXPECT_NEAR(batch.final_cost, solve->summary.final_cost, 1e-9 * (1.0 + batch.final_cost));
+  ASSERT_EQ(batch_poses.size(), solve->world_from_keyframe.size());
+  for (size_t i = 0; i < batch_poses.size(); ++i) {
+    EXPECT_LT((batch_poses[i].translation - solve->world_from_keyframe[i].translation).norm(), 1e-9)
+        << "keyframe " << i;
+  }
   const CorrectedKeyframes after = closing.Corrections();
   EXPECT_EQ(after.num_solved, 60u);
   const Difference d = Compare(after, offline);
@@ -150,6 +188,38 @@ TEST(LoopClosing, SameLoopsAndTrajectoryAsRunPipeline) {
                              s.raw.poses[i].world_from_cam.translation)
                                 .norm());
   EXPECT_GT(moved, 1.0);
+}
+
+// `detect` is the same driver with the optimiser off (RunDetection): the same detector on the same
+// frames gives the same loops; nothing is rejected (no graph) and the raw poses stay as they are.
+// Without raw poses (global search, as `detect` runs without --poses) it still detects the ring.
+TEST(LoopClosing, DetectionIsRunsDriverWithoutTheGraph) {
+  const Sequence s = LoadSequence();
+  const PipelineOptions popt;
+  const PipelineResult run = RunPipeline(s.dataset, s.raw, popt);
+  const PipelineResult detect = RunDetection(s.dataset, s.raw, popt);
+  ASSERT_GE(run.loops.size(), 10u);
+  EXPECT_EQ(LoopIds(detect.loops), LoopIds(run.loops));
+  ASSERT_EQ(detect.frame_results.size(), run.frame_results.size());
+  for (size_t i = 0; i < run.frame_results.size(); ++i)
+    EXPECT_EQ(detect.frame_results[i].status, run.frame_results[i].status) << "frame " << i;
+  EXPECT_EQ(detect.loop_accepted, std::vector<bool>(detect.loops.size(), true));
+  EXPECT_EQ(detect.optimizer.num_vertices, 0u);
+  ASSERT_EQ(detect.corrected.poses.size(), s.raw.poses.size());
+  for (size_t i = 0; i < s.raw.poses.size(); ++i) {
+    EXPECT_EQ(detect.corrected.poses[i].world_from_cam.translation,
+              s.raw.poses[i].world_from_cam.translation);
+  }
+  EXPECT_EQ(detect.bytes_per_keyframe, run.bytes_per_keyframe);
+
+  PipelineOptions global = popt;
+  global.detector.search.strategy = SearchStrategy::kGlobal;
+  const PipelineResult no_poses = RunDetection(s.dataset, std::nullopt, global);
+  EXPECT_TRUE(no_poses.raw.poses.empty());
+  EXPECT_EQ(no_poses.frame_results.size(), s.dataset.frames.size());
+  EXPECT_GE(no_poses.loops.size(), 5u);
+  // The pose graph needs raw poses: asked for without them it refuses.
+  EXPECT_THROW(RunPipeline(s.dataset, Trajectory{}, popt), std::invalid_argument);
 }
 
 // (a) + (b): solving in the background while keyframes arrive, polled from another thread. The

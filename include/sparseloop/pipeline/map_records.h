@@ -11,6 +11,7 @@
 #include "sparseloop/features/informative_features.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/map/map_database.h"
+#include "sparseloop/runtime/loop_closing.h"
 
 namespace sparseloop {
 
@@ -23,6 +24,9 @@ KeyframeRecord FromStoredKeyframe(const StoredKeyframe& stored, float fallback_f
 // Loads every session of `map` except `skip_session` (e.g. the session being written now) into
 // `detector` with AddPriorKeyframes(session id, records). Returns the number of keyframes loaded.
 size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopDetector* detector,
+                         int64_t skip_session = -1);
+// The same into an online LoopClosing (its AddPriorKeyframes).
+size_t LoadPriorSessions(const MapDatabase& map, float fallback_focal_px, LoopClosing* closing,
                          int64_t skip_session = -1);
 
 }  // namespace sparseloop

@@ -1,8 +1,10 @@
 #pragma once
-// The offline pipeline behind `sparseloop run`: every dataset frame is a keyframe with its raw
-// vSLAM pose; the detector finds loops, a pose graph over the raw poses plus the loop edges is
-// optimised (outlier loops rejected), and every raw pose is corrected (keyframes by the solve,
-// poses between keyframes by interpolation of the correction on Sim(3)).
+// The offline driver behind `sparseloop run` and `sparseloop detect`, on top of the online API:
+// every dataset frame is a keyframe of one runtime::LoopClosing (solving once, at Finish), with
+// its raw vSLAM pose when there is one. `run`: the detector finds loops, the pose graph over the
+// raw poses plus the loop edges is optimised (outlier loops rejected), and every raw pose is
+// corrected (keyframes by the solve, poses between keyframes by interpolation of the correction
+// on Sim(3)). `detect`: the same detection with the optimiser off.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -53,7 +55,9 @@ using PipelineProgressCallback = std::function<void(const PipelineProgress&)>;
 struct PipelineResult {
   std::vector<LoopResult> frame_results;  // one per processed keyframe, in order
   std::vector<LoopResult> loops;          // the detected loops (before outlier rejection)
-  std::vector<bool> loop_accepted;        // per entry of `loops`: kept by the pose graph
+  // Per entry of `loops`: kept by the pose graph (in the graph and not rejected by PCM); without
+  // the optimiser (RunDetection) every loop, as nothing rejects it.
+  std::vector<bool> loop_accepted;
   // Loops whose match is a keyframe of an earlier map session (LoopResult::match_session > 0).
   // Not in the pose graph (their world frame differs); stored in the map with accepted = 0.
   std::vector<LoopResult> cross_session_loops;
@@ -65,6 +69,8 @@ struct PipelineResult {
   double bytes_per_keyframe = 0.0;     // mean PackedKeyframe::Bytes() of the stored keyframes
   double detect_seconds = 0.0;         // wall time of the detection loop (image decode included)
   size_t caller_covariance_steps = 0;  // odometry edges weighted by the caller's covariance
+  int64_t map_session = 0;             // with map_path: this run's session in the map
+  size_t prior_keyframes = 0;          // with map_path: keyframes of earlier sessions loaded
 };
 
 // The online LoopClosing configured as `run` is (same detector, loop edges, odometry weighting,
@@ -94,6 +100,9 @@ struct MappedPixels {
 };
 MappedPixels ReadMappedPixels(const std::filesystem::path& path);
 
+// Frames whose image cannot be read are skipped (options.skip_unreadable_frames) and get the
+// interpolated correction. Throws std::invalid_argument on invalid options, FileError on an
+// unreadable image (skip_unreadable_frames false) or mapped-pixels file.
 PipelineResult RunPipeline(const Dataset& dataset, const Trajectory& raw_matched,
                            const PipelineOptions& options,
                            const PipelineProgressCallback& progress = {});
@@ -105,6 +114,14 @@ PipelineResult RunPipeline(
     const Dataset& dataset, const Trajectory& raw_matched,
     const std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>& step_covariances,
     const PipelineOptions& options, const PipelineProgressCallback& progress = {});
+
+// Detection only (`detect`): the driver of RunPipeline with the optimiser off. `raw_matched`
+// (MatchRawPosesToFrames) may be empty: no raw poses, every keyframe is searched as the detector
+// does without a pose (options.detector.search.strategy global). PipelineResult::corrected and
+// ::raw are the raw poses (empty without), `optimizer` is empty, every loop counts as accepted.
+PipelineResult RunDetection(const Dataset& dataset, const std::optional<Trajectory>& raw_matched,
+                            const PipelineOptions& options,
+                            const PipelineProgressCallback& progress = {});
 
 // Ground-truth verdict on detected loops: a loop is correct when the GT positions of its two
 // frames are closer than `threshold` (GT units). GT poses are found by timestamp when the GT has

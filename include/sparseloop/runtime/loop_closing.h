@@ -90,6 +90,12 @@ class LoopClosing {
   LoopClosing(const LoopClosing&) = delete;
   LoopClosing& operator=(const LoopClosing&) = delete;
 
+  // Multi-session: the keyframes of an earlier map session (LoopDetector::AddPriorKeyframes),
+  // searched by appearance for cross-session loops and relocalisation. They get no graph vertex
+  // (their world frame differs) and a loop into them no loop edge. Throws std::invalid_argument
+  // (nothing added) on a bad session or record, and after Finish().
+  void AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records);
+
   // Detects a loop for the keyframe, then queues the keyframe and its loop edge for the
   // background solve. Keyframe ids must increase strictly; timestamps, image and pose are
   // checked by LoopDetector::Process. Throws std::invalid_argument on bad input (nothing stored:
