@@ -22,6 +22,7 @@ namespace fs = std::filesystem;
 using bag_internal::BagReader;
 using bag_internal::ImageData;
 using bag_internal::ImageHeader;
+using bag_internal::TopicInfo;
 
 namespace {
 
@@ -115,33 +116,22 @@ class BagImageReader : public DatasetImageReader {
   mutable ImageSize size_;
 };
 
-}  // namespace
-
-Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options) {
-  options.Check();
-  const RosbagSpec s = ParseRosbagSpec(spec);
-  std::error_code ec;
-  if (!fs::is_regular_file(s.file, ec)) throw FileError(s.file, 0, "a ROS bag file", "missing");
-  auto bag = std::make_shared<BagReader>(s.file);
-  const auto topics = bag->Topics();
-
-  Dataset d;
-  d.kind = "rosbag";
-  d.root = s.file;
-  RequireTopic(topics, s.file, s.image, "sensor_msgs/Image or sensor_msgs/CompressedImage");
-  std::vector<ImageHeader> headers = bag->ImageHeaders(s.image);
+// The image headers in stamp order as the dataset's frames (index, stamp, a name for messages),
+// each raw image checked for its size; returns the raw images' common size (none when every image
+// is compressed) and the bag message of each frame.
+std::optional<ImageSize> FramesFromImages(const RosbagSpec& s, std::vector<ImageHeader> headers,
+                                          Dataset* d, std::vector<int64_t>* message_of_frame) {
   if (headers.empty()) {
     throw FileError(s.file, 0, fmt::format("at least one image on topic {}", s.image), "none");
   }
-  if (!std::is_sorted(
-          headers.begin(), headers.end(),
-          [](const ImageHeader& a, const ImageHeader& b) { return a.stamp < b.stamp; })) {
+  const auto by_stamp = [](const ImageHeader& a, const ImageHeader& b) {
+    return a.stamp < b.stamp;
+  };
+  if (!std::is_sorted(headers.begin(), headers.end(), by_stamp)) {
     Logger().warn("{}: images on {} are not in stamp order; frames follow the stamps", s.file,
                   s.image);
-    std::stable_sort(headers.begin(), headers.end(),
-                     [](const ImageHeader& a, const ImageHeader& b) { return a.stamp < b.stamp; });
+    std::stable_sort(headers.begin(), headers.end(), by_stamp);
   }
-  std::vector<int64_t> message_of_frame;
   std::optional<ImageSize> size;
   for (size_t i = 0; i < headers.size(); ++i) {
     const ImageHeader& h = headers[i];
@@ -172,11 +162,18 @@ Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options
     f.timestamp = h.stamp;
     // Names the frame in messages and output files (frames.csv): FILE.bag/<topic>/<message>.
     f.image_path = fs::path(s.file) / s.image.substr(1) / fmt::format("{:06d}", h.index);
-    d.frames.push_back(std::move(f));
-    message_of_frame.push_back(h.index);
+    d->frames.push_back(std::move(f));
+    message_of_frame->push_back(h.index);
   }
+  return size;
+}
 
-  // Intrinsics: --intrinsics, else camera_info (explicit or the image topic's sibling).
+// Intrinsics: --intrinsics, else camera_info (explicit or the image topic's sibling); checked
+// against the images' size and for a principal point inside the image.
+void ResolveIntrinsics(const std::string& spec, const RosbagSpec& s,
+                       const std::vector<TopicInfo>& topics, BagReader& bag,
+                       const DatasetOptions& options, const std::optional<ImageSize>& size,
+                       Dataset* d) {
   std::string info_topic = s.camera_info;
   if (info_topic.empty()) {
     const std::string sibling = s.image.substr(0, s.image.rfind('/')) + "/camera_info";
@@ -185,36 +182,80 @@ Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options
     }
   }
   if (options.intrinsics) {
-    d.intrinsics = *options.intrinsics;
-    d.intrinsics_source = options.intrinsics_name;
+    d->intrinsics = *options.intrinsics;
+    d->intrinsics_source = options.intrinsics_name;
   } else if (!info_topic.empty()) {
     RequireTopic(topics, s.file, info_topic, "sensor_msgs/CameraInfo");
-    const auto info = bag->FirstCameraInfo(info_topic);
+    const auto info = bag.FirstCameraInfo(info_topic);
     if (!info) throw FileError(s.file, 0, fmt::format("a message on topic {}", info_topic), "none");
-    d.intrinsics = IntrinsicsFromCameraInfo(*info, s.file, info_topic);
-    d.intrinsics_source = fmt::format("{} topic {}", s.file, info_topic);
+    d->intrinsics = IntrinsicsFromCameraInfo(*info, s.file, info_topic);
+    d->intrinsics_source = fmt::format("{} topic {}", s.file, info_topic);
   } else {
     throw std::invalid_argument(fmt::format(
         "{} needs intrinsics: a camera_info=TOPIC in the spec, a {} topic in the bag, or {}", spec,
         s.image.substr(0, s.image.rfind('/')) + "/camera_info", options.intrinsics_name));
   }
+  CameraIntrinsics& k = d->intrinsics;
   if (size) {
-    if (d.intrinsics.width == 0 || d.intrinsics.height == 0) {
-      d.intrinsics.width = size->width;
-      d.intrinsics.height = size->height;
-    } else if (d.intrinsics.width != size->width || d.intrinsics.height != size->height) {
-      throw FileError(
-          s.file, 0,
-          fmt::format("images of {}x{} on topic {} (the size of {})", d.intrinsics.width,
-                      d.intrinsics.height, s.image, d.intrinsics_source),
-          fmt::format("{}x{}", size->width, size->height));
+    if (k.width == 0 || k.height == 0) {
+      k.width = size->width;
+      k.height = size->height;
+    } else if (k.width != size->width || k.height != size->height) {
+      throw FileError(s.file, 0,
+                      fmt::format("images of {}x{} on topic {} (the size of {})", k.width, k.height,
+                                  s.image, d->intrinsics_source),
+                      fmt::format("{}x{}", size->width, size->height));
     }
   }
-  const CameraIntrinsics& k = d.intrinsics;
   if (k.width > 0 && k.height > 0 && !(k.cx > 0 && k.cx < k.width && k.cy > 0 && k.cy < k.height)) {
     throw std::invalid_argument(fmt::format("{}: principal point ({}, {}) outside the {}x{} image",
-                                            d.intrinsics_source, k.cx, k.cy, k.width, k.height));
+                                            d->intrinsics_source, k.cx, k.cy, k.width, k.height));
   }
+}
+
+// Ground truth: DatasetOptions::poses (a timestamped file with orientations), else the spec's
+// gt=TOPIC; attached to the frames by time. Returns the frames that got a GT pose.
+size_t AttachRosbagGt(const RosbagSpec& s, const std::vector<TopicInfo>& topics, BagReader& bag,
+                      const DatasetOptions& options, Dataset* d) {
+  if (!options.poses.empty()) {
+    d->gt_path = options.poses;
+    Trajectory gt = ReadTrajectory(options.poses);
+    if (!gt.has_rotation) {
+      throw FileError(options.poses.string(), 0, "a ground-truth trajectory with orientations",
+                      "a positions-only file");
+    }
+    if (!gt.has_timestamps) {
+      throw FileError(options.poses.string(), 0,
+                      "a timestamped ground truth (TUM or EuRoC) for a rosbag: dataset",
+                      "a file without timestamps");
+    }
+    return AttachGtByTime(d->frames, gt, options.rosbag_max_dt);
+  }
+  if (s.gt.empty()) return 0;
+  RequireTopic(topics, s.file, s.gt, "ground-truth poses");
+  d->gt_path = s.file;
+  return AttachGtByTime(d->frames, PosesToTrajectory(bag.Poses(s.gt), s.file, s.gt),
+                        options.rosbag_max_dt);
+}
+
+}  // namespace
+
+Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options) {
+  options.Check();
+  const RosbagSpec s = ParseRosbagSpec(spec);
+  std::error_code ec;
+  if (!fs::is_regular_file(s.file, ec)) throw FileError(s.file, 0, "a ROS bag file", "missing");
+  auto bag = std::make_shared<BagReader>(s.file);
+  const auto topics = bag->Topics();
+
+  Dataset d;
+  d.kind = "rosbag";
+  d.root = s.file;
+  RequireTopic(topics, s.file, s.image, "sensor_msgs/Image or sensor_msgs/CompressedImage");
+  std::vector<int64_t> message_of_frame;
+  const std::optional<ImageSize> size =
+      FramesFromImages(s, bag->ImageHeaders(s.image), &d, &message_of_frame);
+  ResolveIntrinsics(spec, s, topics, *bag, options, size, &d);
   auto reader = std::make_shared<BagImageReader>(bag, s.image, std::move(message_of_frame));
   if (size) reader->ExpectSize(size->width, size->height);
   d.image_reader = std::move(reader);
@@ -227,26 +268,7 @@ Dataset OpenRosbagDataset(const std::string& spec, const DatasetOptions& options
     }
     d.raw_poses_source = fmt::format("{} topic {}", s.file, s.pose);
   }
-  size_t attached = 0;
-  if (!options.poses.empty()) {
-    d.gt_path = options.poses;
-    Trajectory gt = ReadTrajectory(options.poses);
-    if (!gt.has_rotation) {
-      throw FileError(options.poses.string(), 0, "a ground-truth trajectory with orientations",
-                      "a positions-only file");
-    }
-    if (!gt.has_timestamps) {
-      throw FileError(options.poses.string(), 0,
-                      "a timestamped ground truth (TUM or EuRoC) for a rosbag: dataset",
-                      "a file without timestamps");
-    }
-    attached = AttachGtByTime(d.frames, gt, options.rosbag_max_dt);
-  } else if (!s.gt.empty()) {
-    RequireTopic(topics, s.file, s.gt, "ground-truth poses");
-    d.gt_path = s.file;
-    attached = AttachGtByTime(d.frames, PosesToTrajectory(bag->Poses(s.gt), s.file, s.gt),
-                              options.rosbag_max_dt);
-  }
+  const size_t attached = AttachRosbagGt(s, topics, *bag, options, &d);
   Logger().info("rosbag dataset {}: {} frames from {}, {} raw poses, ground truth for {}", s.file,
                 d.frames.size(), s.image, d.raw_poses.size(), attached);
   return d;

@@ -66,79 +66,84 @@ void PrintTrajectoryTable(const TrajectoryEvaluation& e, const EvaluationOptions
 
 }  // namespace
 
-int RunEval(int argc, char** argv) {
-  CLI::App app{
-      "Evaluate an estimated trajectory against ground truth (ATE, RPE, KITTI) and "
-      "loop detections against ground-truth loops (precision/recall)"};
+namespace {
+
+struct EvalFlags {
   std::string gt_path, est_path, gt_format = "auto", est_format = "auto", align = "sim3";
   std::string associate = "auto", gt_loops_path, derive_loops, loops_path, json_path;
   std::string rpe_unit = "frames";
   EvaluationOptions options;
   GtLoopOptions gt_loop_options;
   LoopEvalOptions loop_options;
-  app.add_option("--gt", gt_path, "ground-truth trajectory file (with --est: trajectory metrics)");
-  app.add_option("--est", est_path, "estimated trajectory file (needs --gt)");
-  app.add_option("--gt-format", gt_format, "auto|tum|kitti|euroc|positions")->capture_default_str();
-  app.add_option("--est-format", est_format, "auto|tum|kitti|euroc|positions")
+  bool trajectories() const { return !est_path.empty(); }
+};
+
+void AddEvalFlags(CLI::App& app, EvalFlags* f) {
+  app.add_option("--gt", f->gt_path,
+                 "ground-truth trajectory file (with --est: trajectory metrics)");
+  app.add_option("--est", f->est_path, "estimated trajectory file (needs --gt)");
+  app.add_option("--gt-format", f->gt_format, "auto|tum|kitti|euroc|positions")
       ->capture_default_str();
-  app.add_option("--align", align, "alignment of est to gt: sim3|se3|none (monocular: sim3)")
+  app.add_option("--est-format", f->est_format, "auto|tum|kitti|euroc|positions")
       ->capture_default_str();
-  app.add_option("--associate", associate,
+  app.add_option("--align", f->align, "alignment of est to gt: sim3|se3|none (monocular: sim3)")
+      ->capture_default_str();
+  app.add_option("--associate", f->associate,
                  "time|index|auto (auto: time when both files carry timestamps, else index)")
       ->capture_default_str();
-  app.add_option("--max-dt", options.association.max_dt,
+  app.add_option("--max-dt", f->options.association.max_dt,
                  "largest timestamp difference for time association, seconds")
       ->capture_default_str();
-  app.add_option("--rpe-delta", options.rpe.delta, "RPE pair distance (frames or metres)")
+  app.add_option("--rpe-delta", f->options.rpe.delta, "RPE pair distance (frames or metres)")
       ->capture_default_str();
-  app.add_option("--rpe-unit", rpe_unit, "frames|m")->capture_default_str();
-  auto* gt_loops_opt =
-      app.add_option("--gt-loops", gt_loops_path, "ground-truth loop pairs file ('i j' per line)");
-  auto* derive_opt = app.add_option("--derive-loops", derive_loops,
+  app.add_option("--rpe-unit", f->rpe_unit, "frames|m")->capture_default_str();
+  auto* gt_loops_opt = app.add_option("--gt-loops", f->gt_loops_path,
+                                      "ground-truth loop pairs file ('i j' per line)");
+  auto* derive_opt = app.add_option("--derive-loops", f->derive_loops,
                                     "derive GT loops from gt poses: DIST,GAP (metres, frames)");
   gt_loops_opt->excludes(derive_opt);
-  app.add_option("--view-angle", gt_loop_options.max_view_angle_deg,
+  app.add_option("--view-angle", f->gt_loop_options.max_view_angle_deg,
                  "with --derive-loops: max angle between viewing directions, degrees")
       ->capture_default_str();
-  app.add_option("--loops", loops_path, "detector loops.csv (columns query,match,score,...)");
-  app.add_option("--frame-tolerance", loop_options.frame_tolerance,
+  app.add_option("--loops", f->loops_path, "detector loops.csv (columns query,match,score,...)");
+  app.add_option("--frame-tolerance", f->loop_options.frame_tolerance,
                  "allowed |match - gt match| in frames for a correct loop")
       ->capture_default_str();
-  app.add_option("--json", json_path, "write all results as JSON to this file (atomically)");
-  Parse(app, argc, argv);
-  if (!json_path.empty()) CheckOutputFileFlag("--json", json_path);
+  app.add_option("--json", f->json_path, "write all results as JSON to this file (atomically)");
+}
 
-  options.alignment = ParseAlignment(align);
-  SL_CHECK_MSG(rpe_unit == "frames" || rpe_unit == "m", "--rpe-unit must be frames or m, got '{}'",
-               rpe_unit);
-  options.rpe.unit = rpe_unit == "m" ? RpeUnit::kMeters : RpeUnit::kFrames;
-  if (!derive_loops.empty()) {
-    const double angle = gt_loop_options.max_view_angle_deg;
-    gt_loop_options = ParseDeriveLoops(derive_loops);
-    gt_loop_options.max_view_angle_deg = angle;
+// Everything checked that can be before a file is read; an invalid value names its flag.
+void CheckEvalFlags(EvalFlags* f) {
+  if (!f->json_path.empty()) CheckOutputFileFlag("--json", f->json_path);
+  f->options.alignment = ParseAlignment(f->align);
+  SL_CHECK_MSG(f->rpe_unit == "frames" || f->rpe_unit == "m",
+               "--rpe-unit must be frames or m, got '{}'", f->rpe_unit);
+  f->options.rpe.unit = f->rpe_unit == "m" ? RpeUnit::kMeters : RpeUnit::kFrames;
+  if (!f->derive_loops.empty()) {
+    const double angle = f->gt_loop_options.max_view_angle_deg;
+    f->gt_loop_options = ParseDeriveLoops(f->derive_loops);
+    f->gt_loop_options.max_view_angle_deg = angle;
   }
-  SL_CHECK_MSG(loops_path.empty() || !gt_loops_path.empty() || !derive_loops.empty(),
+  SL_CHECK_MSG(f->loops_path.empty() || !f->gt_loops_path.empty() || !f->derive_loops.empty(),
                "--loops needs ground-truth loops: give --gt-loops FILE or --derive-loops DIST,GAP");
   // Trajectory metrics need --gt and --est; loops alone need --loops and --gt-loops.
-  const bool trajectories = !est_path.empty();
-  SL_CHECK_MSG(!trajectories || !gt_path.empty(),
+  SL_CHECK_MSG(!f->trajectories() || !f->gt_path.empty(),
                "--est needs --gt (the ground truth to compare with)");
-  SL_CHECK_MSG(trajectories || !loops_path.empty(),
+  SL_CHECK_MSG(f->trajectories() || !f->loops_path.empty(),
                "nothing to evaluate: give --gt and --est (trajectory metrics), and/or --loops with "
                "--gt-loops (loop precision/recall; without trajectories)");
-  SL_CHECK_MSG(derive_loops.empty() || !gt_path.empty(),
+  SL_CHECK_MSG(f->derive_loops.empty() || !f->gt_path.empty(),
                "--derive-loops needs --gt (GT loops are derived from its poses)");
+}
 
-  const Trajectory gt =
-      gt_path.empty() ? Trajectory() : ReadTrajectory(gt_path, ParseTrajectoryFormat(gt_format));
-  const Trajectory est =
-      trajectories ? ReadTrajectory(est_path, ParseTrajectoryFormat(est_format)) : Trajectory();
-  if (associate == "auto") {
-    options.association.method = gt.has_timestamps && est.has_timestamps
-                                     ? AssociationMethod::kTimestamp
-                                     : AssociationMethod::kIndex;
+// The association rule (auto: by time when both files carry timestamps) and the option checks.
+void CheckEvalOptions(const Trajectory& gt, const Trajectory& est, EvalFlags* f) {
+  if (f->associate == "auto") {
+    f->options.association.method = gt.has_timestamps && est.has_timestamps
+                                        ? AssociationMethod::kTimestamp
+                                        : AssociationMethod::kIndex;
   } else {
-    options.association.method = ParseAssociationMethod(associate);
+    f->options.association.method = ParseAssociationMethod(f->associate);
   }
   CheckNamingFlags({{"max_dt", "--max-dt"},
                     {"RPE delta", "--rpe-delta"},
@@ -147,14 +152,65 @@ int RunEval(int argc, char** argv) {
                     {"GT loop distance", "--derive-loops DIST"},
                     {"GT loop min_gap", "--derive-loops GAP"}},
                    [&] {
-                     options.Check();
-                     loop_options.Check();
-                     if (!derive_loops.empty()) gt_loop_options.Check();
+                     f->options.Check();
+                     f->loop_options.Check();
+                     if (!f->derive_loops.empty()) f->gt_loop_options.Check();
                    });
+}
 
+// --gt-loops (pairs must name frames of --gt: ids past its last frame are an error with the
+// line) or --derive-loops; nothing without either.
+std::optional<std::vector<LoopPair>> GtLoopsFor(const EvalFlags& f, const Trajectory& gt) {
+  if (!f.gt_loops_path.empty()) {
+    LoopPairReadOptions read_options;  // without --gt: no range to check
+    for (const StampedPose& p : gt.poses)
+      read_options.num_frames = std::max(read_options.num_frames.value_or(0), p.frame + 1);
+    return ReadLoopPairs(f.gt_loops_path, read_options);
+  }
+  if (!f.derive_loops.empty()) return DeriveGtLoops(gt, f.gt_loop_options);
+  return std::nullopt;
+}
+
+void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
+                   const std::optional<std::vector<LoopPair>>& gt_loops,
+                   const std::optional<LoopPrResult>& loops) {
+  const auto path_or_null = [](const std::string& p) {
+    return p.empty() ? nlohmann::json(nullptr) : nlohmann::json(p);
+  };
+  nlohmann::json j = f.trajectories() ? ToJson(e) : nlohmann::json::object();
+  j["gt_file"] = path_or_null(f.gt_path);
+  j["est_file"] = path_or_null(f.est_path);
+  if (f.trajectories()) j["association"] = ToString(f.options.association.method);
+  j["loops_file"] = path_or_null(f.loops_path);
+  j["gt_loops_file"] = path_or_null(f.gt_loops_path);
+  j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
+  AddLoopKeys(j, loops ? &*loops : nullptr);
+  WriteFileAtomically(f.json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+  std::cout << "wrote " << f.json_path << "\n";
+}
+
+}  // namespace
+
+int RunEval(int argc, char** argv) {
+  CLI::App app{
+      "Evaluate an estimated trajectory against ground truth (ATE, RPE, KITTI) and "
+      "loop detections against ground-truth loops (precision/recall)"};
+  EvalFlags f;
+  AddEvalFlags(app, &f);
+  Parse(app, argc, argv);
+  CheckEvalFlags(&f);
+
+  const Trajectory gt = f.gt_path.empty()
+                            ? Trajectory()
+                            : ReadTrajectory(f.gt_path, ParseTrajectoryFormat(f.gt_format));
+  const Trajectory est = f.trajectories()
+                             ? ReadTrajectory(f.est_path, ParseTrajectoryFormat(f.est_format))
+                             : Trajectory();
+  CheckEvalOptions(gt, est, &f);
+  const EvaluationOptions& options = f.options;
   const TrajectoryEvaluation e =
-      trajectories ? EvaluateTrajectory(gt, est, options) : TrajectoryEvaluation();
-  if (trajectories && e.status == EvaluationStatus::kNoAssociation) {
+      f.trajectories() ? EvaluateTrajectory(gt, est, options) : TrajectoryEvaluation();
+  if (f.trajectories() && e.status == EvaluationStatus::kNoAssociation) {
     const std::string how =
         options.association.method == AssociationMethod::kTimestamp
             ? fmt::format("by timestamp within --max-dt {} s", options.association.max_dt)
@@ -162,24 +218,16 @@ int RunEval(int argc, char** argv) {
     throw std::invalid_argument(fmt::format(
         "no pose of --est {} ({} poses) could be associated with a pose of --gt {} ({} poses) "
         "{}: nothing to evaluate",
-        est_path, est.size(), gt_path, gt.size(), how));
+        f.est_path, est.size(), f.gt_path, gt.size(), how));
   }
 
-  std::optional<std::vector<LoopPair>> gt_loops;
-  if (!gt_loops_path.empty()) {
-    // Pairs must name frames of --gt: ids past its last frame are an error with the line.
-    LoopPairReadOptions read_options;  // without --gt: no range to check
-    for (const StampedPose& p : gt.poses)
-      read_options.num_frames = std::max(read_options.num_frames.value_or(0), p.frame + 1);
-    gt_loops = ReadLoopPairs(gt_loops_path, read_options);
-  }
-  if (!derive_loops.empty()) gt_loops = DeriveGtLoops(gt, gt_loop_options);
+  const std::optional<std::vector<LoopPair>> gt_loops = GtLoopsFor(f, gt);
   std::optional<LoopPrResult> loops;
-  if (!loops_path.empty())
-    loops = EvaluateLoops(ReadDetections(loops_path), *gt_loops, loop_options);
+  if (!f.loops_path.empty())
+    loops = EvaluateLoops(ReadDetections(f.loops_path), *gt_loops, f.loop_options);
 
   // ---- table ----
-  if (trajectories) PrintTrajectoryTable(e, options, est_path, est, gt_path, gt);
+  if (f.trajectories()) PrintTrajectoryTable(e, options, f.est_path, est, f.gt_path, gt);
   if (gt_loops) std::cout << fmt::format("GT loops     {} pairs\n", gt_loops->size());
   if (loops) {
     std::cout << fmt::format(
@@ -187,20 +235,7 @@ int RunEval(int argc, char** argv) {
         loops->num_detections, loops->true_positives, Num(loops->precision), Num(loops->recall),
         Num(loops->recall_at_100p));
   }
-
-  if (!json_path.empty()) {
-    nlohmann::json j = trajectories ? ToJson(e) : nlohmann::json::object();
-    j["gt_file"] = gt_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(gt_path);
-    j["est_file"] = trajectories ? nlohmann::json(est_path) : nlohmann::json(nullptr);
-    if (trajectories) j["association"] = ToString(options.association.method);
-    j["loops_file"] = loops_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(loops_path);
-    j["gt_loops_file"] =
-        gt_loops_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(gt_loops_path);
-    j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
-    AddLoopKeys(j, loops ? &*loops : nullptr);
-    WriteFileAtomically(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
-    std::cout << "wrote " << json_path << "\n";
-  }
+  if (!f.json_path.empty()) WriteEvalJson(f, e, gt_loops, loops);
   return 0;
 }
 

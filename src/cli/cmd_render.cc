@@ -31,11 +31,9 @@ std::vector<std::string> SplitComma(const std::string& s) {
   return out;
 }
 
-}  // namespace
+namespace syn = sparseloop::synthetic;
 
-int RunRender(int argc, char** argv) {
-  namespace syn = sparseloop::synthetic;
-  CLI::App app{"Render a synthetic sequence (KITTI folder layout) with exact ground truth"};
+struct RenderFlags {
   std::string world_name, trajectory_path, plan_name = "circuit", textures_dir, texture_filter;
   std::string raw_path, out_dir, raw_format = "auto";
   int frames = 0, threads = 2, kitti_sequence = -1, start = 0, step = 1;
@@ -44,83 +42,89 @@ int RunRender(int argc, char** argv) {
   syn::SequenceOptions seq;
   bool no_photometric = false, no_mapped = false, poses_only = false;
   double drift_scale = 1.0, photometric_scale = 1.0;
-  app.add_option("--world", world_name, "aerial or street")
+};
+
+void AddRenderFlags(CLI::App& app, RenderFlags* f) {
+  app.add_option("--world", f->world_name, "aerial or street")
       ->required()
       ->check(CLI::IsMember({"aerial", "street"}));
-  app.add_option("--trajectory", trajectory_path,
+  app.add_option("--trajectory", f->trajectory_path,
                  "GT trajectory file (street: required; aerial: replaces --plan)");
-  app.add_option("--plan", plan_name, "aerial flight plan: circuit, figure8, lawnmower")
+  app.add_option("--plan", f->plan_name, "aerial flight plan: circuit, figure8, lawnmower")
       ->capture_default_str();
-  app.add_option("--textures", textures_dir, "texture folder (default: procedural textures)");
-  app.add_option("--texture-filter", texture_filter,
+  app.add_option("--textures", f->textures_dir, "texture folder (default: procedural textures)");
+  app.add_option("--texture-filter", f->texture_filter,
                  "comma-separated substrings; only matching texture file names are used");
-  app.add_option("--frames", frames, "frames to render (0: all poses / the plan's default)")
+  app.add_option("--frames", f->frames, "frames to render (0: all poses / the plan's default)")
       ->check(IntegerAtLeast(0))
       ->capture_default_str();
-  app.add_option("--start", start,
+  app.add_option("--start", f->start,
                  "first pose of --trajectory to render (the world is still "
                  "built from the whole trajectory)")
       ->check(IntegerAtLeast(0))
       ->capture_default_str();
-  app.add_option("--step", step, "render every step-th pose")
+  app.add_option("--step", f->step, "render every step-th pose")
       ->check(IntegerAtLeast(1))
       ->capture_default_str();
-  app.add_option("--seed", seed, "seed of the world, noise and drift")->capture_default_str();
-  app.add_option("--threads", threads, "frames rendered in parallel")
+  app.add_option("--seed", f->seed, "seed of the world, noise and drift")->capture_default_str();
+  app.add_option("--threads", f->threads, "frames rendered in parallel")
       ->check(IntegerAtLeast(1))
       ->capture_default_str();
-  app.add_option("--altitude", plan.altitude, "aerial: metres above ground")->capture_default_str();
-  app.add_option("--tilt", plan.tilt_deg, "aerial: camera tilt from nadir, degrees")
+  app.add_option("--altitude", f->plan.altitude, "aerial: metres above ground")
       ->capture_default_str();
-  app.add_option("--size", plan.size, "aerial: side of the flown area, metres")
+  app.add_option("--tilt", f->plan.tilt_deg, "aerial: camera tilt from nadir, degrees")
       ->capture_default_str();
-  app.add_option("--laps", plan.laps, "aerial: laps of circuit/figure8")->capture_default_str();
-  app.add_option("--kitti-sequence", kitti_sequence,
+  app.add_option("--size", f->plan.size, "aerial: side of the flown area, metres")
+      ->capture_default_str();
+  app.add_option("--laps", f->plan.laps, "aerial: laps of circuit/figure8")->capture_default_str();
+  app.add_option("--kitti-sequence", f->kitti_sequence,
                  "street: KITTI sequence whose cam0 intrinsics to use (default: from the file "
                  "name, else 0)");
-  app.add_option("--noise", seq.render.noise_sigma, "sensor noise std-dev, gray levels")
+  app.add_option("--noise", f->seq.render.noise_sigma, "sensor noise std-dev, gray levels")
       ->capture_default_str();
-  app.add_option("--blur", seq.render.blur_sigma, "Gaussian blur std-dev, pixels")
+  app.add_option("--blur", f->seq.render.blur_sigma, "Gaussian blur std-dev, pixels")
       ->capture_default_str();
-  app.add_flag("--no-photometric", no_photometric, "constant exposure and gamma");
-  app.add_option("--raw", raw_path,
+  app.add_flag("--no-photometric", f->no_photometric, "constant exposure and gamma");
+  app.add_option("--raw", f->raw_path,
                  "real estimate (associated by index) instead of simulated "
                  "drift");
-  app.add_option("--raw-format", raw_format, "format of --raw")->capture_default_str();
-  app.add_flag("--depth", seq.write_depth, "also write depth_0/NNNNNN.png (metres * 256)");
-  app.add_flag("--no-mapped", no_mapped, "do not write mapped/NNNNNN.txt");
-  app.add_option("--drift", drift_scale,
+  app.add_option("--raw-format", f->raw_format, "format of --raw")->capture_default_str();
+  app.add_flag("--depth", f->seq.write_depth, "also write depth_0/NNNNNN.png (metres * 256)");
+  app.add_flag("--no-mapped", f->no_mapped, "do not write mapped/NNNNNN.txt");
+  app.add_option("--drift", f->drift_scale,
                  "multiplies every simulated drift rate (rotation, translation, scale); 0: none")
       ->capture_default_str();
-  app.add_option("--photometric", photometric_scale,
+  app.add_option("--photometric", f->photometric_scale,
                  "multiplies the exposure/gamma change amplitudes")
       ->capture_default_str();
   app.add_flag(
-      "--poses-only", poses_only,
+      "--poses-only", f->poses_only,
       "write only poses_gt.txt and poses_raw.txt (no images; same drift as a full render)");
-  app.add_option("--out", out_dir, "output folder")->required();
-  Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", out_dir,
-                     {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt", "render.json"});
+  app.add_option("--out", f->out_dir, "output folder")->required();
+}
 
-  seq.num_threads = threads;
-  seq.photometric_drift = !no_photometric;
-  seq.write_mapped = !no_mapped;
-  seq.render.seed = syn::HashCombine(seed, 1);
-  seq.drift.seed = syn::HashCombine(seed, 2);
-  seq.photometric.seed = syn::HashCombine(seed, 3);
-  SL_CHECK_MSG(drift_scale >= 0.0 && std::isfinite(drift_scale), "--drift must be >= 0, got {}",
-               drift_scale);
-  SL_CHECK_MSG(photometric_scale >= 0.0 && std::isfinite(photometric_scale),
-               "--photometric must be >= 0, got {}", photometric_scale);
-  seq.drift.rotation_noise_deg_per_sqrt_m *= drift_scale;
-  seq.drift.rotation_bias_deg_per_100m *= drift_scale;
-  seq.drift.translation_noise *= drift_scale;
-  seq.drift.scale_noise_per_sqrt_m *= drift_scale;
-  seq.drift.scale_bias_per_100m *= drift_scale;
-  seq.photometric.gain_amplitude *= photometric_scale;
-  seq.photometric.gamma_amplitude *= photometric_scale;
-  if (frames > 0) plan.frames = frames;
+// The sequence and plan options from the flags (seeds, drift and photometric scales), checked;
+// an invalid value names its flag.
+void ApplyRenderFlags(RenderFlags* f) {
+  syn::SequenceOptions& seq = f->seq;
+  seq.num_threads = f->threads;
+  seq.photometric_drift = !f->no_photometric;
+  seq.write_mapped = !f->no_mapped;
+  seq.render.seed = syn::HashCombine(f->seed, 1);
+  seq.drift.seed = syn::HashCombine(f->seed, 2);
+  seq.photometric.seed = syn::HashCombine(f->seed, 3);
+  SL_CHECK_MSG(f->drift_scale >= 0.0 && std::isfinite(f->drift_scale),
+               "--drift must be >= 0, got {}", f->drift_scale);
+  SL_CHECK_MSG(f->photometric_scale >= 0.0 && std::isfinite(f->photometric_scale),
+               "--photometric must be >= 0, got {}", f->photometric_scale);
+  seq.drift.rotation_noise_deg_per_sqrt_m *= f->drift_scale;
+  seq.drift.rotation_bias_deg_per_100m *= f->drift_scale;
+  seq.drift.translation_noise *= f->drift_scale;
+  seq.drift.scale_noise_per_sqrt_m *= f->drift_scale;
+  seq.drift.scale_bias_per_100m *= f->drift_scale;
+  seq.photometric.gain_amplitude *= f->photometric_scale;
+  seq.photometric.gamma_amplitude *= f->photometric_scale;
+  if (f->frames > 0) f->plan.frames = f->frames;
   CheckNamingFlags({{"altitude", "--altitude"},
                     {"tilt_deg", "--tilt"},
                     {"size", "--size"},
@@ -131,97 +135,125 @@ int RunRender(int argc, char** argv) {
                     {"gain_amplitude", "--photometric"},
                     {"gamma_amplitude", "--photometric"}},
                    [&] {
-                     plan.Check();
+                     f->plan.Check();
                      seq.Check();
                    });
+}
 
-  std::shared_ptr<const syn::TextureSet> textures;
-  if (textures_dir.empty()) {
+std::shared_ptr<const syn::TextureSet> MakeTextures(const RenderFlags& f) {
+  if (f.textures_dir.empty()) {
     syn::ProceduralTextureOptions tex;
-    tex.seed = syn::HashCombine(seed, 4);
-    textures = syn::MakeProceduralTextures(tex);
-  } else {
-    syn::TextureFolderOptions tex;
-    tex.name_filter = SplitComma(texture_filter);
-    textures = syn::LoadTextureFolder(textures_dir, tex);
+    tex.seed = syn::HashCombine(f.seed, 4);
+    return syn::MakeProceduralTextures(tex);
   }
+  syn::TextureFolderOptions tex;
+  tex.name_filter = SplitComma(f.texture_filter);
+  return syn::LoadTextureFolder(f.textures_dir, tex);
+}
 
+// The world, its camera and the whole GT trajectory (the street world is shaped by all of it).
+struct Scene {
   Trajectory gt;
   syn::World world;
   CameraIntrinsics camera;
-  if (world_name == "aerial") {
-    if (!trajectory_path.empty()) {
-      gt = ReadTrajectory(trajectory_path);
+};
+
+Scene BuildScene(const RenderFlags& f, std::shared_ptr<const syn::TextureSet> textures) {
+  Scene scene;
+  if (f.world_name == "aerial") {
+    if (!f.trajectory_path.empty()) {
+      scene.gt = ReadTrajectory(f.trajectory_path);
     } else {
-      plan.plan = syn::ParseFlightPlan(plan_name);
-      gt = syn::MakeFlightTrajectory(plan);
+      syn::FlightPlanOptions plan = f.plan;
+      plan.plan = syn::ParseFlightPlan(f.plan_name);
+      scene.gt = syn::MakeFlightTrajectory(plan);
     }
     syn::AerialWorldOptions options;
-    options.seed = syn::HashCombine(seed, 5);
-    world = syn::MakeAerialWorld(textures, options);
-    camera = syn::DefaultAerialCamera();
-  } else {
-    SL_CHECK_MSG(!trajectory_path.empty(), "--world street needs --trajectory FILE");
-    gt = ReadTrajectory(trajectory_path);
-    if (kitti_sequence < 0) {
-      const std::string stem = std::filesystem::path(trajectory_path).stem().string();
-      kitti_sequence = (!stem.empty() && stem.size() <= 2 &&
-                        stem.find_first_not_of("0123456789") == std::string::npos)
-                           ? std::stoi(stem)
-                           : 0;
-    }
-    camera = syn::KittiCam0Intrinsics(kitti_sequence);
-    syn::StreetWorldOptions options;
-    options.seed = syn::HashCombine(seed, 6);
-    world = syn::MakeStreetWorld(gt, textures, options);  // the whole trajectory shapes the world
+    options.seed = syn::HashCombine(f.seed, 5);
+    scene.world = syn::MakeAerialWorld(textures, options);
+    scene.camera = syn::DefaultAerialCamera();
+    return scene;
   }
-  SL_CHECK_MSG(start >= 0 && static_cast<size_t>(start) < gt.size(),
-               "--start {} outside the trajectory of {} poses", start, gt.size());
-  SL_CHECK_MSG(step >= 1, "--step must be >= 1, got {}", step);
-  if (start > 0 || step > 1) {
-    Trajectory picked = gt;
-    picked.poses.clear();
-    for (size_t i = start; i < gt.size(); i += step) picked.poses.push_back(gt.poses[i]);
-    gt = std::move(picked);
+  SL_CHECK_MSG(!f.trajectory_path.empty(), "--world street needs --trajectory FILE");
+  scene.gt = ReadTrajectory(f.trajectory_path);
+  int kitti_sequence = f.kitti_sequence;
+  if (kitti_sequence < 0) {
+    const std::string stem = std::filesystem::path(f.trajectory_path).stem().string();
+    kitti_sequence = (!stem.empty() && stem.size() <= 2 &&
+                      stem.find_first_not_of("0123456789") == std::string::npos)
+                         ? std::stoi(stem)
+                         : 0;
   }
-  if (frames > 0 && static_cast<size_t>(frames) < gt.size()) gt.poses.resize(frames);
+  scene.camera = syn::KittiCam0Intrinsics(kitti_sequence);
+  syn::StreetWorldOptions options;
+  options.seed = syn::HashCombine(f.seed, 6);
+  scene.world = syn::MakeStreetWorld(scene.gt, textures, options);
+  return scene;
+}
+
+// --start, --step and --frames applied to the GT trajectory.
+Trajectory SliceTrajectory(const RenderFlags& f, const Trajectory& gt) {
+  SL_CHECK_MSG(f.start >= 0 && static_cast<size_t>(f.start) < gt.size(),
+               "--start {} outside the trajectory of {} poses", f.start, gt.size());
+  SL_CHECK_MSG(f.step >= 1, "--step must be >= 1, got {}", f.step);
+  Trajectory picked = gt;
+  picked.poses.clear();
+  for (size_t i = f.start; i < gt.size(); i += f.step) picked.poses.push_back(gt.poses[i]);
+  if (f.frames > 0 && static_cast<size_t>(f.frames) < picked.size()) picked.poses.resize(f.frames);
+  return picked;
+}
+
+// render.json: what was rendered, so a --start / --step slice is known from the folder itself
+// (frame k of the folder is pose start + k * step of the trajectory).
+void WriteRenderJson(const RenderFlags& f, size_t frames) {
+  nlohmann::json j = {
+      {"command", "render"},
+      {"world", f.world_name},
+      {"trajectory",
+       f.trajectory_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.trajectory_path)},
+      {"plan", f.trajectory_path.empty() && f.world_name == "aerial" ? nlohmann::json(f.plan_name)
+                                                                     : nlohmann::json(nullptr)},
+      {"start", f.start},
+      {"step", f.step},
+      {"frames", frames},
+      {"seed", f.seed},
+      {"raw", f.raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.raw_path)},
+      {"drift", f.drift_scale},
+      {"photometric", f.photometric_scale},
+      {"poses_only", f.poses_only}};
+  WriteFileAtomically(std::filesystem::path(f.out_dir) / "render.json",
+                      [&](std::ostream& os) { os << j.dump(2) << "\n"; });
+}
+
+}  // namespace
+
+int RunRender(int argc, char** argv) {
+  CLI::App app{"Render a synthetic sequence (KITTI folder layout) with exact ground truth"};
+  RenderFlags f;
+  AddRenderFlags(app, &f);
+  Parse(app, argc, argv);
+  CheckOutputDirFlag("--out", f.out_dir,
+                     {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt", "render.json"});
+  ApplyRenderFlags(&f);
+
+  const Scene scene = BuildScene(f, MakeTextures(f));
+  const Trajectory gt = SliceTrajectory(f, scene.gt);
   std::optional<Trajectory> raw;
-  if (!raw_path.empty()) {
-    raw = ReadTrajectory(raw_path, ParseTrajectoryFormat(raw_format));
+  if (!f.raw_path.empty()) {
+    raw = ReadTrajectory(f.raw_path, ParseTrajectoryFormat(f.raw_format));
     if (raw->size() > gt.size()) raw->poses.resize(gt.size());
   }
-
-  // render.json: what was rendered, so a --start / --step slice is known from the folder itself
-  // (frame k of the folder is pose start + k * step of the trajectory).
-  const auto write_render_json = [&] {
-    nlohmann::json j = {
-        {"command", "render"},
-        {"world", world_name},
-        {"trajectory",
-         trajectory_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(trajectory_path)},
-        {"plan", trajectory_path.empty() && world_name == "aerial" ? nlohmann::json(plan_name)
-                                                                   : nlohmann::json(nullptr)},
-        {"start", start},
-        {"step", step},
-        {"frames", gt.size()},
-        {"seed", seed},
-        {"raw", raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(raw_path)},
-        {"drift", drift_scale},
-        {"photometric", photometric_scale},
-        {"poses_only", poses_only}};
-    WriteFileAtomically(std::filesystem::path(out_dir) / "render.json",
-                        [&](std::ostream& os) { os << j.dump(2) << "\n"; });
-  };
-  if (poses_only) {
+  if (f.poses_only) {
     SL_CHECK_MSG(!raw, "--poses-only simulates the drift; it cannot be combined with --raw");
-    const syn::DriftResult drift = syn::SimulateDrift(gt, seq.drift);
-    std::filesystem::create_directories(out_dir);
-    WriteTrajectory(std::filesystem::path(out_dir) / "poses_gt.txt", gt, TrajectoryFormat::kKitti);
-    WriteTrajectory(std::filesystem::path(out_dir) / "poses_raw.txt", drift.raw,
+    const syn::DriftResult drift = syn::SimulateDrift(gt, f.seq.drift);
+    std::filesystem::create_directories(f.out_dir);
+    WriteTrajectory(std::filesystem::path(f.out_dir) / "poses_gt.txt", gt,
                     TrajectoryFormat::kKitti);
-    write_render_json();
+    WriteTrajectory(std::filesystem::path(f.out_dir) / "poses_raw.txt", drift.raw,
+                    TrajectoryFormat::kKitti);
+    WriteRenderJson(f, gt.size());
     std::cout << fmt::format("wrote poses_gt.txt and poses_raw.txt ({} poses) to {}\n", gt.size(),
-                             out_dir);
+                             f.out_dir);
     return 0;
   }
   const bool tty = isatty(fileno(stderr));
@@ -232,11 +264,12 @@ int RunRender(int argc, char** argv) {
       if (done == total) std::fprintf(stderr, "\n");
     }
   };
-  const auto result = syn::WriteKittiSequence(out_dir, world, camera, gt, seq, raw, progress);
-  write_render_json();
+  const auto result =
+      syn::WriteKittiSequence(f.out_dir, scene.world, scene.camera, gt, f.seq, raw, progress);
+  WriteRenderJson(f, gt.size());
   std::cout << fmt::format("wrote {} frames ({}x{}) to {} in {:.1f} s ({:.1f} frames/s)\n",
-                           result.frames, camera.width, camera.height, out_dir, result.seconds,
-                           result.frames_per_second);
+                           result.frames, scene.camera.width, scene.camera.height, f.out_dir,
+                           result.seconds, result.frames_per_second);
   return 0;
 }
 

@@ -10,12 +10,8 @@ std::vector<Eigen::Vector3d> Trajectory::Positions() const {
 }
 
 std::vector<double> Trajectory::CumulativeDistances() const {
-  std::vector<double> out(poses.size(), 0.0);
-  for (size_t i = 1; i < poses.size(); ++i) {
-    out[i] = out[i - 1] +
-             (poses[i].world_from_cam.translation - poses[i - 1].world_from_cam.translation).norm();
-  }
-  return out;
+  return CumulativePathLength(poses,
+                              [](const StampedPose& p) { return p.world_from_cam.translation; });
 }
 
 }  // namespace sparseloop

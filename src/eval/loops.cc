@@ -39,8 +39,7 @@ std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& o
     pos[i] = gt.poses[i].world_from_cam.translation;
     view[i] = gt.poses[i].world_from_cam.rotation * Eigen::Vector3d::UnitZ();
   }
-  std::vector<double> path(n, 0.0);  // GT path length from the first pose
-  for (size_t i = 1; i < n; ++i) path[i] = path[i - 1] + (pos[i] - pos[i - 1]).norm();
+  const std::vector<double> path = gt.CumulativeDistances();  // GT path length from the first pose
   const double dist_sq = options.distance * options.distance;
   std::vector<LoopPair> out;
   for (size_t i = 0; i < n; ++i) {

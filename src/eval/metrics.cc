@@ -7,6 +7,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/statistics.h"
+#include "sparseloop/core/trajectory.h"
 
 namespace sparseloop {
 
@@ -151,9 +152,8 @@ KittiResult ComputeKittiMetric(const std::vector<Rigid3d>& gt, const std::vector
   KittiResult result;
   const size_t n = gt.size();
   // trajectoryDistances: cumulative gt path length.
-  std::vector<double> dist(n, 0.0);
-  for (size_t i = 1; i < n; ++i)
-    dist[i] = dist[i - 1] + (gt[i].translation - gt[i - 1].translation).norm();
+  const std::vector<double> dist =
+      CumulativePathLength(gt, [](const Rigid3d& p) { return p.translation; });
 
   for (size_t first = 0; first < n; first += static_cast<size_t>(options.step_size)) {
     for (double len : options.lengths) {

@@ -125,14 +125,15 @@ KeyframeRecord UnpackRecord(const PackedKeyframe& packed) {
   return r;
 }
 
-cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options) {
-  options.Check();
-  SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");
+namespace {
+
+// Gradient magnitude (central differences, L2), clamped to [0, 255]; the border is 0. The
+// buffer is the calling thread's, reused by its next call.
+const cv::Mat& GradientMagnitude(const cv::Mat& gray) {
   const int rows = gray.rows;
   const int cols = gray.cols;
-  // Gradient magnitude (central differences, L2), clamped to [0, 255]. |gx|, |gy| <= 127, so
-  // floor(sqrt(gx^2 + gy^2)) comes from a table (exactly the float sqrt; 4x faster than calling
-  // it).
+  // |gx|, |gy| <= 127, so floor(sqrt(gx^2 + gy^2)) comes from a table (exactly the float sqrt;
+  // 4x faster than calling it).
   static const std::vector<uint8_t> kSqrt = [] {
     std::vector<uint8_t> t(2 * 127 * 127 + 1);
     for (size_t i = 0; i < t.size(); ++i)
@@ -186,7 +187,13 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
       out[x] = kSqrt[gx * gx + gy * gy];
     }
   }
-  // Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
+  return mag;
+}
+
+// Per-block median via a histogram, threshold = median + offset (DSO's pixel selector idea).
+cv::Mat ThresholdByBlockMedian(const cv::Mat& mag, const GradientMaskOptions& options) {
+  const int rows = mag.rows;
+  const int cols = mag.cols;
   cv::Mat mask(rows, cols, CV_8UC1);  // every pixel is written: the blocks tile the image
   const int b = options.block_size;
   for (int by = 0; by < rows; by += b) {
@@ -221,6 +228,15 @@ cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options
       }
     }
   }
+  return mask;
+}
+
+}  // namespace
+
+cv::Mat HighGradientMask(const cv::Mat& gray, const GradientMaskOptions& options) {
+  options.Check();
+  SL_CHECK_MSG(!gray.empty() && gray.type() == CV_8UC1, "HighGradientMask needs a CV_8UC1 image");
+  cv::Mat mask = ThresholdByBlockMedian(GradientMagnitude(gray), options);
   if (options.dilate_radius > 0) {
     const int k = 2 * options.dilate_radius + 1;
     cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k)));
@@ -307,42 +323,40 @@ std::vector<cv::Point2f> Undistort(const std::vector<cv::Point2f>& pixels,
 
 }  // namespace
 
-void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions& options,
-                                KeyframeRecord* record) {
-  options.Check();
-  SL_CHECK_MSG(record != nullptr, "record must not be null");
-  SL_CHECK_MSG(input.image != nullptr && !input.image->empty(), "image must not be empty");
-  SL_CHECK_MSG(input.image->type() == CV_8UC1, "image must be 8-bit grayscale (CV_8UC1)");
-  SL_CHECK_MSG(input.intrinsics != nullptr, "intrinsics are required");
-  input.intrinsics->Check();
+namespace {
+
+// Extraction area: caller's mask, else dilated mapped pixels, else semi-dense selection (empty:
+// the whole image).
+cv::Mat ExtractionMask(const FeatureInput& input, const FeatureOptions& options) {
   const cv::Mat& image = *input.image;
   const cv::Size size = image.size();
-
-  // Extraction area: caller's mask, else dilated mapped pixels, else semi-dense selection.
-  cv::Mat mask;
   if (input.mask != nullptr && !input.mask->empty()) {
     SL_CHECK_MSG(input.mask->size() == size && input.mask->type() == CV_8UC1,
                  "mask must be CV_8UC1 of the image size");
-    mask = *input.mask;
-  } else if (input.mapped_pixels != nullptr && !input.mapped_pixels->empty()) {
-    mask = cv::Mat(size, CV_8UC1, cv::Scalar(0));
+    return *input.mask;
+  }
+  if (input.mapped_pixels != nullptr && !input.mapped_pixels->empty()) {
+    cv::Mat mask(size, CV_8UC1, cv::Scalar(0));
     const int r = std::max(1, options.gradient.dilate_radius);
     for (const auto& p : *input.mapped_pixels) {
       cv::rectangle(mask, cv::Point(int(p.x) - r, int(p.y) - r),
                     cv::Point(int(p.x) + r, int(p.y) + r), cv::Scalar(255), cv::FILLED);
     }
-  } else if (options.use_gradient_mask) {
-    mask = HighGradientMask(image, options.gradient);
+    return mask;
   }
-  if (input.mapped_depths != nullptr) {
-    SL_CHECK_MSG(input.mapped_pixels != nullptr &&
-                     input.mapped_pixels->size() == input.mapped_depths->size(),
-                 "mapped_depths needs mapped_pixels of the same length");
-  }
+  if (options.use_gradient_mask) return HighGradientMask(image, options.gradient);
+  return cv::Mat();
+}
 
-  std::vector<cv::KeyPoint> keypoints;
-  std::vector<Descriptor> all;  // descriptors of `keypoints` (kOpenCv, popcount) or of `keep`
-  std::vector<int> keep;
+// ORB keypoints in the mask, the ranked indices of the K kept (`keep`) and descriptors (`all`:
+// of every keypoint, or only of the kept ones where the ranking needs none).
+void DetectAndRank(const cv::Mat& image, const cv::Mat& mask, const FeatureOptions& options,
+                   std::vector<cv::KeyPoint>* keypoints_out, std::vector<Descriptor>* all_out,
+                   std::vector<int>* keep_out) {
+  const cv::Size size = image.size();
+  std::vector<cv::KeyPoint>& keypoints = *keypoints_out;
+  std::vector<Descriptor>& all = *all_out;
+  std::vector<int>& keep = *keep_out;
   if (options.orb_backend == OrbBackend::kOpenCv) {
     auto orb = cv::ORB::create(options.orb_candidates, static_cast<float>(options.orb_scale_factor),
                                options.orb_levels, 31, 0, 2, cv::ORB::HARRIS_SCORE, 31,
@@ -378,6 +392,72 @@ void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions&
       for (size_t j = 0; j < keep.size(); ++j) all[keep[j]] = kept[j];
     }
   }
+}
+
+// Depth of each kept keypoint (`pixels`): the nearest mapped pixel within 3 px that has a depth
+// (0 when none).
+std::vector<float> DepthsFromMappedPixels(const FeatureInput& input,
+                                          const std::vector<cv::Point2f>& pixels) {
+  const size_t n = pixels.size();
+  std::vector<float> depths(n, 0.0f);
+  const auto& mp = *input.mapped_pixels;
+  const auto& md = *input.mapped_depths;
+  // Mapped pixels with a depth bucketed in 3 px cells: a keypoint looks at its cell and the 8
+  // around it (all pixels within 3 px), in input order, so ties resolve as a full scan would
+  // (the last pixel at the smallest distance wins). Linear in keypoints + mapped pixels, which
+  // matters for the query's whole extraction (asymmetric matching: 1,000 keypoints).
+  constexpr float kCell = 3.0f;
+  auto cell_of = [&](float v) { return static_cast<int64_t>(std::floor(v / kCell)); };
+  auto key = [](int64_t cx, int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+  std::unordered_map<int64_t, std::vector<uint32_t>> cells;
+  for (size_t m = 0; m < mp.size(); ++m)
+    if (md[m] > 0 && std::isfinite(mp[m].x) && std::isfinite(mp[m].y))
+      cells[key(cell_of(mp[m].x), cell_of(mp[m].y))].push_back(static_cast<uint32_t>(m));
+  std::vector<uint32_t> near;
+  for (size_t j = 0; j < n; ++j) {
+    near.clear();
+    const int64_t cx = cell_of(pixels[j].x), cy = cell_of(pixels[j].y);
+    for (int64_t dy = -1; dy <= 1; ++dy)
+      for (int64_t dx = -1; dx <= 1; ++dx) {
+        const auto it = cells.find(key(cx + dx, cy + dy));
+        if (it != cells.end()) near.insert(near.end(), it->second.begin(), it->second.end());
+      }
+    std::sort(near.begin(), near.end());
+    float best = 9.0f;  // squared pixel radius
+    for (uint32_t m : near) {
+      const float dx = mp[m].x - pixels[j].x;
+      const float dy = mp[m].y - pixels[j].y;
+      const float d2 = dx * dx + dy * dy;
+      if (d2 <= best) {
+        best = d2;
+        depths[j] = md[m];
+      }
+    }
+  }
+  return depths;
+}
+
+}  // namespace
+
+void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions& options,
+                                KeyframeRecord* record) {
+  options.Check();
+  SL_CHECK_MSG(record != nullptr, "record must not be null");
+  SL_CHECK_MSG(input.image != nullptr && !input.image->empty(), "image must not be empty");
+  SL_CHECK_MSG(input.image->type() == CV_8UC1, "image must be 8-bit grayscale (CV_8UC1)");
+  SL_CHECK_MSG(input.intrinsics != nullptr, "intrinsics are required");
+  input.intrinsics->Check();
+  const cv::Mat mask = ExtractionMask(input, options);
+  if (input.mapped_depths != nullptr) {
+    SL_CHECK_MSG(input.mapped_pixels != nullptr &&
+                     input.mapped_pixels->size() == input.mapped_depths->size(),
+                 "mapped_depths needs mapped_pixels of the same length");
+  }
+
+  std::vector<cv::KeyPoint> keypoints;
+  std::vector<Descriptor> all;  // descriptors of `keypoints` (kOpenCv, popcount) or of `keep`
+  std::vector<int> keep;
+  DetectAndRank(*input.image, mask, options, &keypoints, &all, &keep);
 
   std::vector<cv::Point2f> pixels;
   pixels.reserve(keep.size());
@@ -401,44 +481,8 @@ void ExtractInformativeFeatures(const FeatureInput& input, const FeatureOptions&
   }
   record->focal_px = static_cast<float>(0.5 * (input.intrinsics->fx + input.intrinsics->fy));
 
-  // Depth of a kept keypoint: the nearest mapped pixel within 3 px that has a depth.
   if (input.mapped_depths != nullptr && !input.mapped_depths->empty()) {
-    const auto& mp = *input.mapped_pixels;
-    const auto& md = *input.mapped_depths;
-    record->depths.assign(keep.size(), 0.0f);
-    // Mapped pixels with a depth bucketed in 3 px cells: a keypoint looks at its cell and the 8
-    // around it (all pixels within 3 px), in input order, so ties resolve as a full scan would
-    // (the last pixel at the smallest distance wins). Linear in keypoints + mapped pixels, which
-    // matters for the query's whole extraction (asymmetric matching: 1,000 keypoints).
-    constexpr float kCell = 3.0f;
-    auto cell_of = [&](float v) { return static_cast<int64_t>(std::floor(v / kCell)); };
-    auto key = [](int64_t cx, int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
-    std::unordered_map<int64_t, std::vector<uint32_t>> cells;
-    for (size_t m = 0; m < mp.size(); ++m)
-      if (md[m] > 0 && std::isfinite(mp[m].x) && std::isfinite(mp[m].y))
-        cells[key(cell_of(mp[m].x), cell_of(mp[m].y))].push_back(static_cast<uint32_t>(m));
-    std::vector<uint32_t> near;
-    for (size_t j = 0; j < keep.size(); ++j) {
-      near.clear();
-      const int64_t cx = cell_of(pixels[j].x), cy = cell_of(pixels[j].y);
-      for (int64_t dy = -1; dy <= 1; ++dy)
-        for (int64_t dx = -1; dx <= 1; ++dx) {
-          const auto it = cells.find(key(cx + dx, cy + dy));
-          if (it != cells.end()) near.insert(near.end(), it->second.begin(), it->second.end());
-        }
-      std::sort(near.begin(), near.end());
-      float best = 9.0f;  // squared pixel radius
-      for (uint32_t m : near) {
-        const float dx = mp[m].x - pixels[j].x;
-        const float dy = mp[m].y - pixels[j].y;
-        const float d2 = dx * dx + dy * dy;
-        if (d2 <= best) {
-          best = d2;
-          record->depths[j] = md[m];
-        }
-      }
-    }
-    record->depths.shrink_to_fit();
+    record->depths = DepthsFromMappedPixels(input, pixels);
   }
 }
 

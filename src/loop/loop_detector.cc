@@ -167,12 +167,7 @@ size_t LoopDetector::StoredBytes() const {
   return total;
 }
 
-LoopResult LoopDetector::Process(const KeyframeInput& input) {
-  Timer total;
-  LoopResult result;
-  result.query_id = input.id;
-  // Validate everything before any state changes, so a rejected keyframe leaves the stored map
-  // exactly as it was (docs/ROBUSTNESS.md).
+bool LoopDetector::ValidateInput(const KeyframeInput& input) const {
   SL_CHECK_MSG(!index_of_.count(input.id), "keyframe id {} was already processed", input.id);
   SL_CHECK_MSG(std::isfinite(input.timestamp), "keyframe {}: timestamp is not finite", input.id);
   SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp(),
@@ -197,153 +192,179 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
                  "(or enable relocalize_without_pose)",
                  input.id);
   }
+  return relocalize;
+}
 
-  // 1. Informative features: the query's extraction (all it matches with), and the K stored.
-  Timer stage;
-  KeyframeRecord full = ExtractRecord(input);
-  full.has_pose = input.world_from_cam.has_value();
-  if (full.has_pose) full.world_from_cam = *input.world_from_cam;
-  PackedKeyframe rec =
-      PackRecord(StoredSubset(full, StoredOrder(full), options_.features.max_features));
-  if (options_.repeatability_window > 0) {
-    recent_.push_back(full.descriptors);
-    if (recent_.size() > static_cast<size_t>(options_.repeatability_window)) recent_.pop_front();
-  }
-  result.timings.extract_ms = stage.ElapsedMs();
-
-  // 2. Store (packed: the stored pose, keypoints and depths are the quantised ones from here on,
-  // the same after a round trip through the map).
+size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
   unpacked_.clear();
   const size_t index = records_.size();
-  const Eigen::Vector3d position =
-      rec.has_pose() ? rec.world_from_cam().translation : Eigen::Vector3d::Zero();
-  double path = 0.0;
-  if (index > 0) {
-    path = path_length_.back();
-    const PackedKeyframe& prev = records_.back();
-    if (prev.has_pose() && rec.has_pose())
-      path += (position - prev.world_from_cam().translation).norm();
-  }
+  // A keyframe without a pose (global search only) stays where the last posed one was: the
+  // path length across the gap is the chord between the posed keyframes around it.
+  if (rec.has_pose()) last_position_ = rec.world_from_cam().translation;
   any_pose_ |= rec.has_pose();
   any_missing_pose_ |= !rec.has_pose();
   index_of_[rec.id()] = index;
-  path_length_.push_back(path);
-  if (!relocalize) search_.Add(rec.id(), position);  // no place on the trajectory without a pose
+  // No place on the trajectory without a pose.
+  if (!relocalize) search_.Add(rec.id(), last_position_);
   records_.push_back(std::move(rec));
-  const KeyframeRecord& query = full;
+  return index;
+}
 
-  if (relocalize) {
-    result.relocalization = true;
-    if (records_.back().size() < 5) {
-      result.status = LoopStatus::kNoFeatures;
-    } else {
-      std::vector<PoolEntry> pool;
-      for (size_t i = 0; i + 1 < records_.size(); ++i)
-        if (records_[i].has_pose()) pool.push_back({0, &records_[i]});
-      for (size_t i = 0; i < prior_records_.size(); ++i)
-        if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
-      MatchAndVerifyPool(query, pool, &result);
-    }
-    result.timings.total_ms = total.ElapsedMs();
-    return result;
-  }
-
-  if ((index + 1) % static_cast<size_t>(options_.check_every) != 0) {
-    result.status = LoopStatus::kSkipped;
-    result.timings.total_ms = total.ElapsedMs();
-    return result;
-  }
+void LoopDetector::RelocalizeStored(const KeyframeRecord& query, LoopResult* result) const {
+  result->relocalization = true;
   if (records_.back().size() < 5) {
-    result.status = LoopStatus::kNoFeatures;
-    result.timings.total_ms = total.ElapsedMs();
-    return result;
+    result->status = LoopStatus::kNoFeatures;
+    return;
   }
+  std::vector<PoolEntry> pool;
+  for (size_t i = 0; i + 1 < records_.size(); ++i)
+    if (records_[i].has_pose()) pool.push_back({0, &records_[i]});
+  for (size_t i = 0; i < prior_records_.size(); ++i)
+    if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
+  MatchAndVerifyPool(query, pool, result);
+}
 
-  // 3. Search area, then the scale-free "far along the path" filter.
-  stage.Restart();
+bool LoopDetector::FarAlong(const KeyframeRecord& query, size_t ci) const {
+  const PackedKeyframe& c = records_[ci];
+  if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose()) return true;
+  const double chord = (query.world_from_cam.translation - c.world_from_cam().translation).norm();
+  return search_.PathLength(query.id) - search_.PathLength(c.id()) >=
+         options_.min_path_ratio * chord;
+}
+
+std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query, size_t index,
+                                                    LoopResult* result) {
   const SearchAreaResult area = search_.Query(query.id);
-  // Path between record ci and the query >= min_path_ratio x their distance (or unmeasurable).
-  auto far_along = [&](size_t ci) {
-    const PackedKeyframe& c = records_[ci];
-    if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose()) return true;
-    const double chord = (query.world_from_cam.translation - c.world_from_cam().translation).norm();
-    return path_length_[index] - path_length_[ci] >= options_.min_path_ratio * chord;
-  };
   std::vector<int64_t> candidates;
   candidates.reserve(area.candidates.size());
   for (int64_t id : area.candidates)
-    if (far_along(index_of_.at(id))) candidates.push_back(id);
+    if (FarAlong(query, index_of_.at(id))) candidates.push_back(id);
   if (!query.has_pose && options_.overlap_gap > 0 && !candidates.empty()) {
     const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
     const size_t start = OverlapStart(query, index > exclude ? index - exclude : 0);
-    result.overlap_excluded = 0;
+    result->overlap_excluded = 0;
     std::vector<int64_t> kept;
     for (int64_t id : candidates) {
       if (index_of_.at(id) < start) {
         kept.push_back(id);
       } else {
-        ++result.overlap_excluded;
+        ++result->overlap_excluded;
       }
     }
     candidates = std::move(kept);
   }
   if (options_.retrieval == CandidateRetrieval::kAnn)
     candidates = RetrieveByVotes(query, index, candidates);  // index insert + vote query
+  return candidates;
+}
+
+void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
+                                      std::vector<int64_t> in_area, LoopResult* result) {
+  // Every eligible stored keyframe the area did not hold, far along the path.
+  Timer stage;
+  std::sort(in_area.begin(), in_area.end());
+  const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+  std::vector<int64_t> others;
+  for (size_t ci = 0; ci + exclude < index; ++ci) {
+    const PackedKeyframe& c = records_[ci];
+    if (c.has_pose() && FarAlong(query, ci) &&
+        !std::binary_search(in_area.begin(), in_area.end(), c.id()))
+      others.push_back(c.id());
+  }
+  const double fallback_search_ms = stage.ElapsedMs();
+  LoopResult fallback;
+  fallback.query_id = query.id;
+  SearchAndVerify(query, std::move(others), &fallback);
+  result->timings.search_ms += fallback_search_ms;
+  result->timings.match_ms += fallback.timings.match_ms;
+  result->timings.verify_ms += fallback.timings.verify_ms;
+  if (fallback.detected()) {
+    fallback.timings = result->timings;
+    fallback.source = CandidateSource::kAppearance;
+    *result = fallback;
+  }
+}
+
+void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const {
+  // Earlier sessions, by appearance only (their world frame is not ours).
+  std::vector<PoolEntry> pool;
+  pool.reserve(prior_records_.size());
+  for (size_t i = 0; i < prior_records_.size(); ++i)
+    pool.push_back({prior_session_[i], &prior_records_[i]});
+  LoopResult prior;
+  prior.query_id = query.id;
+  MatchAndVerifyPool(query, pool, &prior);
+  if (prior.detected()) {
+    prior.timings.extract_ms = result->timings.extract_ms;
+    prior.timings.search_ms = result->timings.search_ms;
+    prior.timings.match_ms += result->timings.match_ms;
+    prior.timings.verify_ms += result->timings.verify_ms;
+    *result = prior;
+  } else {
+    result->timings.match_ms += prior.timings.match_ms;
+    result->timings.verify_ms += prior.timings.verify_ms;
+  }
+}
+
+LoopResult LoopDetector::Process(const KeyframeInput& input) {
+  Timer total;
+  LoopResult result;
+  result.query_id = input.id;
+  // Validate everything before any state changes, so a rejected keyframe leaves the stored map
+  // exactly as it was (docs/ROBUSTNESS.md).
+  const bool relocalize = ValidateInput(input);
+
+  // 1. Informative features: the query's extraction (all it matches with), and the K stored.
+  Timer stage;
+  KeyframeRecord query = ExtractRecord(input);
+  query.has_pose = input.world_from_cam.has_value();
+  if (query.has_pose) query.world_from_cam = *input.world_from_cam;
+  PackedKeyframe rec =
+      PackRecord(StoredSubset(query, StoredOrder(query), options_.features.max_features));
+  if (options_.repeatability_window > 0) {
+    recent_.push_back(query.descriptors);
+    if (recent_.size() > static_cast<size_t>(options_.repeatability_window)) recent_.pop_front();
+  }
+  result.timings.extract_ms = stage.ElapsedMs();
+
+  // 2. Store (packed: the stored pose, keypoints and depths are the quantised ones from here on,
+  // the same after a round trip through the map).
+  const size_t index = Store(std::move(rec), relocalize);
+  const auto finish = [&] {
+    result.timings.total_ms = total.ElapsedMs();
+    return result;
+  };
+  if (relocalize) {
+    RelocalizeStored(query, &result);
+    return finish();
+  }
+  if ((index + 1) % static_cast<size_t>(options_.check_every) != 0) {
+    result.status = LoopStatus::kSkipped;
+    return finish();
+  }
+  if (records_.back().size() < 5) {
+    result.status = LoopStatus::kNoFeatures;
+    return finish();
+  }
+
+  // 3. Search area, then the scale-free "far along the path" filter (FarAlong).
+  stage.Restart();
+  std::vector<int64_t> candidates = SearchCandidates(query, index, &result);
   result.timings.search_ms = stage.ElapsedMs();
 
+  // 4. Match, verify, check (SearchAndVerify); the fallbacks when that finds nothing.
   SearchAndVerify(query, candidates, &result);
   if (!result.detected() && options_.appearance_fallback && query.has_pose &&
       options_.search.strategy != SearchStrategy::kGlobal) {
-    // Every eligible stored keyframe the area did not hold, far along the path.
-    stage.Restart();
-    std::vector<int64_t> in_area = candidates;
-    std::sort(in_area.begin(), in_area.end());
-    const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
-    std::vector<int64_t> others;
-    for (size_t ci = 0; ci + exclude < index; ++ci) {
-      const PackedKeyframe& c = records_[ci];
-      if (c.has_pose() && far_along(ci) &&
-          !std::binary_search(in_area.begin(), in_area.end(), c.id()))
-        others.push_back(c.id());
-    }
-    const double fallback_search_ms = stage.ElapsedMs();
-    LoopResult fallback;
-    fallback.query_id = query.id;
-    SearchAndVerify(query, std::move(others), &fallback);
-    result.timings.search_ms += fallback_search_ms;
-    result.timings.match_ms += fallback.timings.match_ms;
-    result.timings.verify_ms += fallback.timings.verify_ms;
-    if (fallback.detected()) {
-      fallback.timings = result.timings;
-      fallback.source = CandidateSource::kAppearance;
-      result = fallback;
-    }
+    AppearanceFallback(query, index, std::move(candidates), &result);
   }
   if (result.detected()) {
     SetWorldFromQuery(Stored(index_of_.at(result.match_id)), &result);
   } else if (options_.search_prior_sessions && !prior_records_.empty()) {
-    // Earlier sessions, by appearance only (their world frame is not ours).
-    std::vector<PoolEntry> pool;
-    pool.reserve(prior_records_.size());
-    for (size_t i = 0; i < prior_records_.size(); ++i)
-      pool.push_back({prior_session_[i], &prior_records_[i]});
-    LoopResult prior;
-    prior.query_id = query.id;
-    MatchAndVerifyPool(query, pool, &prior);
-    if (prior.detected()) {
-      prior.timings.extract_ms = result.timings.extract_ms;
-      prior.timings.search_ms = result.timings.search_ms;
-      prior.timings.match_ms += result.timings.match_ms;
-      prior.timings.verify_ms += result.timings.verify_ms;
-      result = prior;
-    } else {
-      result.timings.match_ms += prior.timings.match_ms;
-      result.timings.verify_ms += prior.timings.verify_ms;
-    }
+    SearchPriorSessions(query, &result);
   }
   result.relocalization = !query.has_pose;
-  result.timings.total_ms = total.ElapsedMs();
-  return result;
+  return finish();
 }
 
 void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
@@ -824,6 +845,98 @@ LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
   return result;
 }
 
+LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const KeyframeRecord& match,
+                                      size_t query_index, size_t match_index,
+                                      const std::vector<DescriptorMatch>& matches,
+                                      const VerificationResult& v, bool from_local_map,
+                                      LoopResult* trial) const {
+  if (!query.has_pose || !match.has_pose || v.pose_kind == RelativePoseKind::kNone)
+    return LoopStatus::kDetected;
+  // A pose from 3D points (PnP / Sim(3) against the local map or depths) has no two-view
+  // ambiguity: the gate may be as wide as the odometry between the two places allows. A
+  // two-view pose can be the wrong one of two supported solutions (castle 29 -> 02: 27 deg
+  // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
+  const bool from_3d =
+      v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3;
+  const GraphPrior graph_prior = PriorAlongLoopGraph(query_index, match_index);
+  const double tolerance_deg = std::min(
+      options_.consistency_max_deg,
+      options_.consistency_base_deg + (from_3d ? options_.consistency_per_keyframe_deg
+                                               : options_.two_view_consistency_per_keyframe_deg) *
+                                          static_cast<double>(graph_prior.keyframes));
+  auto error_deg = [&](const Sim3d& pose) {
+    return RotationAngle(graph_prior.match_from_query, pose.rotation) * 180.0 / M_PI;
+  };
+  trial->rotation_error_vs_prior_deg = error_deg(v.match_from_query);
+  if (!options_.check_consistency || trial->rotation_error_vs_prior_deg <= tolerance_deg)
+    return LoopStatus::kDetected;
+  if (!options_.planar_alternatives || from_local_map) return LoopStatus::kRejectedByConsistency;
+  for (const VerificationResult& alt : PlanarAlternatives(query, match, matches, v, verify_)) {
+    const double err = error_deg(alt.match_from_query);
+    if (err > options_.planar_alternative_tolerance * tolerance_deg) continue;
+    trial->rotation_error_vs_prior_deg = err;
+    trial->inliers = alt.inliers;
+    trial->score = static_cast<double>(alt.inliers) / options_.features.max_features;
+    trial->match_from_query = alt.match_from_query;
+    trial->information = alt.information;
+    trial->planar_alternative = true;
+    return LoopStatus::kDetected;
+  }
+  return LoopStatus::kRejectedByConsistency;
+}
+
+LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_index,
+                                      size_t match_index,
+                                      const std::vector<DescriptorMatch>& matches,
+                                      const VerifyOptions& verify, bool weak_enabled,
+                                      std::optional<size_t>* support, LoopResult* trial) {
+  const KeyframeRecord& match = Stored(match_index);
+  VerificationResult v = VerifyPair(query, match, matches, verify);
+  int map_points = 0, map_inliers = 0;
+  if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
+      options_.local_map.enabled && match.has_pose) {
+    VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
+    if (m.success) {
+      map_inliers = m.inliers;
+      v.method = m.method;
+      v.pose_kind = m.pose_kind;
+      v.match_from_query = m.match_from_query;
+      v.information = m.information;
+    }
+  }
+  trial->local_map_points = map_inliers > 0 ? map_points : 0;
+  trial->local_map_inliers = map_inliers;
+  trial->match_id = match.id;
+  trial->matches = static_cast<int>(matches.size());
+  trial->inliers = v.inliers;
+  trial->score = static_cast<double>(v.inliers) / options_.features.max_features;
+  trial->method = v.method;
+  trial->pose_kind = v.pose_kind;
+  trial->match_from_query = v.match_from_query;
+  trial->information = v.information;
+  if (!v.success) return LoopStatus::kTooFewInliers;
+  LoopStatus status =
+      RotationGate(query, match, query_index, match_index, matches, v, map_inliers > 0, trial);
+  if (status == LoopStatus::kDetected && weak_enabled) {
+    // Passed the gate: support for the next queries (committed after this query's loop).
+    if (!*support) *support = match_index;
+    const bool is_weak = trial->inliers < verify_.min_inliers && map_inliers == 0;
+    if (is_weak && !Agrees(query_index, match_index)) status = LoopStatus::kRejectedByTemporal;
+  }
+  if (status == LoopStatus::kDetected && options_.continuity_check && !query.has_pose &&
+      ContinuesRecentView(query, query_index, match_index, trial->inliers, verify)) {
+    status = LoopStatus::kRejectedByTemporal;
+  }
+  if (status == LoopStatus::kDetected && options_.temporal_check) {
+    const bool confirmed =
+        last_verified_ && std::llabs(static_cast<int64_t>(last_verified_->second) -
+                                     static_cast<int64_t>(match_index)) <= options_.temporal_window;
+    last_verified_ = std::make_pair(query_index, match_index);
+    if (!confirmed) status = LoopStatus::kRejectedByTemporal;
+  }
+  return status;
+}
+
 void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
                                    LoopResult* result) {
   result->candidates = static_cast<int>(candidates.size());
@@ -862,103 +975,18 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   bool have_best = false;
   const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
   std::optional<size_t> support;  // match index of this query's first gate-passing pair
+  // Keep the most informative outcome: detected > rejected > too few inliers (best inliers).
+  auto rank = [](LoopStatus s) {
+    return s == LoopStatus::kDetected                                                          ? 3
+           : (s == LoopStatus::kRejectedByConsistency || s == LoopStatus::kRejectedByTemporal) ? 2
+                                                                                               : 1;
+  };
   for (int r = 0; r < n_verify; ++r) {
     const auto& cand = ranked[r];
-    const size_t match_index = record_index[cand.entry];
-    const KeyframeRecord& match = Stored(match_index);
-    VerificationResult v = VerifyPair(query, match, cand.matches, verify);
-    int map_points = 0, map_inliers = 0;
-    if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
-        options_.local_map.enabled && match.has_pose) {
-      VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
-      if (m.success) {
-        map_inliers = m.inliers;
-        v.method = m.method;
-        v.pose_kind = m.pose_kind;
-        v.match_from_query = m.match_from_query;
-        v.information = m.information;
-      }
-    }
     LoopResult trial = *result;
-    trial.local_map_points = map_inliers > 0 ? map_points : 0;
-    trial.local_map_inliers = map_inliers;
-    trial.match_id = match.id;
-    trial.matches = static_cast<int>(cand.matches.size());
-    trial.inliers = v.inliers;
-    trial.score = static_cast<double>(v.inliers) / options_.features.max_features;
-    trial.method = v.method;
-    trial.pose_kind = v.pose_kind;
-    trial.match_from_query = v.match_from_query;
-    trial.information = v.information;
-    LoopStatus trial_status = LoopStatus::kTooFewInliers;
-    // A pose from 3D points (PnP / Sim(3) against the local map or depths) has no two-view
-    // ambiguity: the gate may be as wide as the odometry between the two places allows. A
-    // two-view pose can be the wrong one of two supported solutions (castle 29 -> 02: 27 deg
-    // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
-    const bool from_3d =
-        v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3;
-    const GraphPrior graph_prior = query.has_pose && match.has_pose
-                                       ? PriorAlongLoopGraph(query_index, match_index)
-                                       : GraphPrior{};
-    const double tolerance_deg = std::min(
-        options_.consistency_max_deg,
-        options_.consistency_base_deg + (from_3d ? options_.consistency_per_keyframe_deg
-                                                 : options_.two_view_consistency_per_keyframe_deg) *
-                                            static_cast<double>(graph_prior.keyframes));
-    if (v.success) {
-      trial_status = LoopStatus::kDetected;
-      if (query.has_pose && match.has_pose && v.pose_kind != RelativePoseKind::kNone) {
-        const Eigen::Quaterniond& prior = graph_prior.match_from_query;
-        auto error_deg = [&](const Sim3d& pose) {
-          return RotationAngle(prior, pose.rotation) * 180.0 / M_PI;
-        };
-        trial.rotation_error_vs_prior_deg = error_deg(v.match_from_query);
-        if (options_.check_consistency && trial.rotation_error_vs_prior_deg > tolerance_deg) {
-          trial_status = LoopStatus::kRejectedByConsistency;
-          if (options_.planar_alternatives && map_inliers == 0) {
-            for (const VerificationResult& alt :
-                 PlanarAlternatives(query, match, cand.matches, v, verify_)) {
-              const double err = error_deg(alt.match_from_query);
-              if (err > options_.planar_alternative_tolerance * tolerance_deg) continue;
-              trial.rotation_error_vs_prior_deg = err;
-              trial.inliers = alt.inliers;
-              trial.score = static_cast<double>(alt.inliers) / options_.features.max_features;
-              trial.match_from_query = alt.match_from_query;
-              trial.information = alt.information;
-              trial.planar_alternative = true;
-              trial_status = LoopStatus::kDetected;
-              break;
-            }
-          }
-        }
-      }
-      if (trial_status == LoopStatus::kDetected && weak_enabled) {
-        // Passed the gate: support for the next queries (committed after this query's loop).
-        if (!support) support = match_index;
-        const bool is_weak = trial.inliers < verify_.min_inliers && map_inliers == 0;
-        if (is_weak && !Agrees(query_index, match_index))
-          trial_status = LoopStatus::kRejectedByTemporal;
-      }
-      if (trial_status == LoopStatus::kDetected && options_.continuity_check && !query.has_pose &&
-          ContinuesRecentView(query, query_index, match_index, trial.inliers, verify)) {
-        trial_status = LoopStatus::kRejectedByTemporal;
-      }
-      if (trial_status == LoopStatus::kDetected && options_.temporal_check) {
-        const bool confirmed =
-            last_verified_ &&
-            std::llabs(static_cast<int64_t>(last_verified_->second) -
-                       static_cast<int64_t>(match_index)) <= options_.temporal_window;
-        last_verified_ = std::make_pair(query_index, match_index);
-        if (!confirmed) trial_status = LoopStatus::kRejectedByTemporal;
-      }
-    }
-    // Keep the most informative outcome: detected > rejected > too few inliers (best inliers).
-    auto rank = [](LoopStatus s) {
-      return s == LoopStatus::kDetected ? 3
-             : (s == LoopStatus::kRejectedByConsistency || s == LoopStatus::kRejectedByTemporal)
-                 ? 2
-                 : 1;
-    };
+    const LoopStatus trial_status =
+        TryCandidate(query, query_index, record_index[cand.entry], cand.matches, verify,
+                     weak_enabled, &support, &trial);
     if (!have_best || rank(trial_status) > rank(status) ||
         (rank(trial_status) == rank(status) && trial.inliers > result->inliers)) {
       const StageTimings keep = result->timings;

@@ -162,7 +162,8 @@ ConfigKey PlaneNormalKey() {
                    }};
 }
 
-void AddDetectorKeys(KeyList& k) {
+// detector.features.*: the informative features.
+void AddFeatureKeys(KeyList& k) {
   const std::string f = "detector.features.";
   k.Add(f + "max_features", SL_FIELD(detector.features.max_features), "features",
         "K, informative features kept per keyframe (>= 1)");
@@ -195,7 +196,10 @@ void AddDetectorKeys(KeyList& k) {
         "grey levels", "gradient mask: selected when |grad| > block median + offset");
   k.Add(f + "gradient.dilate_radius", SL_FIELD(detector.features.gradient.dilate_radius), "px",
         "gradient mask: dilation of the selection");
+}
 
+// detector.search.*: the search area.
+void AddSearchKeys(KeyList& k) {
   const std::string s = "detector.search.";
   k.AddEnum(
       s + "strategy", SL_FIELD(detector.search.strategy),
@@ -223,7 +227,10 @@ void AddDetectorKeys(KeyList& k) {
         "trajectory growth that triggers a plane refit and grid rebuild (> 0)");
   k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
         "grid cell size (0: 4x the mean in-plane step)");
+}
 
+// detector.match.*, detector.verify.*, detector.local_map.*: matching and verification.
+void AddMatchingKeys(KeyList& k) {
   const std::string m = "detector.match.";
   k.Add(m + "max_distance", SL_FIELD(detector.match.max_distance), "bits",
         "largest accepted Hamming distance (of 256)");
@@ -269,7 +276,10 @@ void AddDetectorKeys(KeyList& k) {
         "triangulation matching: ratio test (0, 1]");
   k.Add(l + "match.mutual", SL_FIELD(detector.local_map.triangulation.match.mutual), "",
         "triangulation matching: mutual best only");
+}
 
+// detector.*: what is stored, matched, accepted and gated.
+void AddDetectorPolicyKeys(KeyList& k) {
   const std::string d = "detector.";
   k.Add(d + "asymmetric_matching", SL_FIELD(detector.asymmetric_matching), "",
         "match the stored K features against the query's whole extraction (not K x K)");
@@ -341,7 +351,10 @@ void AddDetectorKeys(KeyList& k) {
         "multi-session: match earlier map sessions when this one gives no loop");
   k.Add(d + "relocalize_without_pose", SL_FIELD(detector.relocalize_without_pose), "",
         "a keyframe without a pose is relocalised (false: rejected)");
+}
 
+// detector.ann.* (the approximate index) and detector.seed.
+void AddAnnKeys(KeyList& k) {
   const std::string a = "detector.ann.";
   k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node (>= 2)");
   k.Add(a + "ef_construction", SL_FIELD(detector.ann.ef_construction), "candidates",
@@ -356,7 +369,16 @@ void AddDetectorKeys(KeyList& k) {
         "top-voted keyframes matched and verified (>= 1)");
   k.Add(a + "num_threads", SL_FIELD(detector.ann.num_threads), "threads",
         "OpenMP threads of the index (1: deterministic inserts)");
-  k.Add(d + "seed", SL_FIELD(detector.seed), "", "RNG seed of the verification");
+  k.Add("detector.seed", SL_FIELD(detector.seed), "", "RNG seed of the verification");
+}
+
+// Registration order is the order of `config --dump` and of the docs table.
+void AddDetectorKeys(KeyList& k) {
+  AddFeatureKeys(k);
+  AddSearchKeys(k);
+  AddMatchingKeys(k);
+  AddDetectorPolicyKeys(k);
+  AddAnnKeys(k);
 }
 
 void AddOptimizerKeys(KeyList& k) {

@@ -40,6 +40,90 @@ Matrix7d StepCovariance(const PoseGraphEdge& edge, bool reversed) {
   return ad * cov * ad.transpose();
 }
 
+namespace {
+
+// Incident edges of every vertex, compressed: incident[offset[v] .. offset[v + 1]).
+struct Incidence {
+  std::vector<size_t> offset, incident;
+};
+
+Incidence BuildIncidence(const std::vector<std::array<size_t, 2>>& ends, size_t n) {
+  Incidence g;
+  g.offset.assign(n + 1, 0);
+  for (size_t e = 0; e < ends.size(); ++e) {
+    SL_CHECK_MSG(ends[e][0] < n && ends[e][1] < n, "edge {} has a vertex index out of range", e);
+    ++g.offset[ends[e][0] + 1];
+    ++g.offset[ends[e][1] + 1];
+  }
+  for (size_t v = 0; v < n; ++v) g.offset[v + 1] += g.offset[v];
+  g.incident.resize(g.offset[n]);
+  std::vector<size_t> fill(g.offset.begin(), g.offset.end() - 1);
+  for (size_t e = 0; e < ends.size(); ++e) {
+    g.incident[fill[ends[e][0]]++] = e;
+    g.incident[fill[ends[e][1]]++] = e;
+  }
+  return g;
+}
+
+// The chain's composed measurement and first-order covariance (as its square-root information),
+// accumulated from the last step backwards.
+void ComposeChain(const std::vector<PoseGraphEdge>& edges, const std::vector<bool>& diagonal,
+                  ReducedChain* chain) {
+  S3 suffix;  // Z_{i+1} ... Z_k
+  Matrix7d sigma = Matrix7d::Zero();
+  for (size_t i = chain->steps.size(); i-- > 0;) {
+    const Matrix7d a = Sim3EdgeCost::Adjoint(suffix.Inverse());
+    const size_t edge = chain->step_edges[i];
+    if (diagonal[edge] && !chain->step_reversed[i]) {
+      // a * diag(c) * a^T: one 7x7 product instead of two.
+      const Matrix7d scaled = a * edges[edge].information.diagonal().cwiseInverse().asDiagonal();
+      sigma.noalias() += scaled * a.transpose();
+    } else {
+      sigma.noalias() += a * StepCovariance(edges[edge], chain->step_reversed[i]) * a.transpose();
+    }
+    suffix = chain->steps[i] * suffix;
+  }
+  chain->from_from_to = suffix;
+  sigma = 0.5 * (sigma + sigma.transpose());
+  const Eigen::LLT<Matrix7d> llt(sigma);
+  SL_CHECK_MSG(llt.info() == Eigen::Success, "chain covariance is not positive definite");
+  // Sigma = L L^T, so S = L^-1 gives S^T S = Sigma^-1.
+  chain->sqrt_information = llt.matrixL().solve(Matrix7d::Identity());
+}
+
+// Keeps every vertex that is not a chain vertex (exactly two chainable edges, to two different
+// neighbours).
+void KeepNonChainVertices(const Incidence& g, const std::vector<std::array<size_t, 2>>& ends,
+                          const std::vector<bool>& chainable, std::vector<bool>* kept) {
+  const auto other_end = [&](size_t e, size_t v) {
+    return ends[e][0] == v ? ends[e][1] : ends[e][0];
+  };
+  for (size_t v = 0; v + 1 < g.offset.size(); ++v) {
+    if ((*kept)[v]) continue;
+    const size_t* inc = g.incident.data() + g.offset[v];
+    const bool chain_vertex = g.offset[v + 1] - g.offset[v] == 2 && chainable[inc[0]] &&
+                              chainable[inc[1]] && other_end(inc[0], v) != other_end(inc[1], v);
+    if (!chain_vertex) (*kept)[v] = true;
+  }
+}
+
+// A chain that came back to its start (a ring of chain vertices): its last interior vertex is
+// kept, so that the chain has two distinct ends and its last edge becomes a direct edge.
+void BreakRing(ReducedChain* chain, ChainReduction* out, std::vector<bool>* in_chain) {
+  SL_CHECK(!chain->interior.empty());
+  const size_t last = chain->interior.back();
+  chain->interior.pop_back();
+  (*in_chain)[last] = false;
+  out->kept[last] = true;
+  chain->to = last;
+  out->direct_edges.push_back(chain->step_edges.back());
+  chain->steps.pop_back();
+  chain->step_edges.pop_back();
+  chain->step_reversed.pop_back();
+}
+
+}  // namespace
+
 ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
                             const std::vector<std::array<size_t, 2>>& ends,
                             std::vector<bool> must_keep, int max_chain_length) {
@@ -48,22 +132,9 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
                ends.size());
   const size_t n = must_keep.size();
   const size_t num_edges = edges.size();
-  // Incident edges of every vertex, compressed: incident[offset[v] .. offset[v + 1]).
-  std::vector<size_t> offset(n + 1, 0);
-  for (size_t e = 0; e < num_edges; ++e) {
-    SL_CHECK_MSG(ends[e][0] < n && ends[e][1] < n, "edge {} has a vertex index out of range", e);
-    ++offset[ends[e][0] + 1];
-    ++offset[ends[e][1] + 1];
-  }
-  for (size_t v = 0; v < n; ++v) offset[v + 1] += offset[v];
-  std::vector<size_t> incident(offset[n]);
-  {
-    std::vector<size_t> fill(offset.begin(), offset.end() - 1);
-    for (size_t e = 0; e < num_edges; ++e) {
-      incident[fill[ends[e][0]]++] = e;
-      incident[fill[ends[e][1]]++] = e;
-    }
-  }
+  const Incidence graph = BuildIncidence(ends, n);
+  const std::vector<size_t>& offset = graph.offset;
+  const std::vector<size_t>& incident = graph.incident;
   const auto other_end = [&](size_t e, size_t v) {
     return ends[e][0] == v ? ends[e][1] : ends[e][0];
   };
@@ -79,20 +150,13 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
 
   ChainReduction out;
   out.kept = std::move(must_keep);
-  for (size_t v = 0; v < n; ++v) {
-    if (out.kept[v]) continue;
-    const size_t* inc = incident.data() + offset[v];
-    const bool chain_vertex = offset[v + 1] - offset[v] == 2 && chainable[inc[0]] &&
-                              chainable[inc[1]] && other_end(inc[0], v) != other_end(inc[1], v);
-    if (!chain_vertex) out.kept[v] = true;
-  }
+  KeepNonChainVertices(graph, ends, chainable, &out.kept);
 
   std::vector<bool> edge_done(num_edges, false);
   std::vector<bool> in_chain(n, false);
   std::vector<size_t> queue;
-  for (size_t v = 0; v < n; ++v) {
+  for (size_t v = 0; v < n; ++v)
     if (out.kept[v]) queue.push_back(v);
-  }
   // Walks one chain from kept vertex `start` along `first_edge`. When the chain is cut at
   // max_chain_length, returns the cut vertex and its other edge (the next chain to walk).
   struct Next {
@@ -134,41 +198,8 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
       u = w;
       e = next;
     }
-    if (chain.to == chain.from) {
-      // A cycle back to its start (a ring of chain vertices): keep its last interior vertex, so
-      // that the chain has two distinct ends and its last edge becomes a direct edge.
-      SL_CHECK(!chain.interior.empty());
-      const size_t last = chain.interior.back();
-      chain.interior.pop_back();
-      in_chain[last] = false;
-      out.kept[last] = true;
-      chain.to = last;
-      out.direct_edges.push_back(chain.step_edges.back());
-      chain.steps.pop_back();
-      chain.step_edges.pop_back();
-      chain.step_reversed.pop_back();
-    }
-    // Composition and first-order covariance, accumulated from the last step backwards.
-    S3 suffix;  // Z_{i+1} ... Z_k
-    Matrix7d sigma = Matrix7d::Zero();
-    for (size_t i = chain.steps.size(); i-- > 0;) {
-      const Matrix7d a = Sim3EdgeCost::Adjoint(suffix.Inverse());
-      const size_t edge = chain.step_edges[i];
-      if (diagonal[edge] && !chain.step_reversed[i]) {
-        // a * diag(c) * a^T: one 7x7 product instead of two.
-        const Matrix7d scaled = a * edges[edge].information.diagonal().cwiseInverse().asDiagonal();
-        sigma.noalias() += scaled * a.transpose();
-      } else {
-        sigma.noalias() += a * StepCovariance(edges[edge], chain.step_reversed[i]) * a.transpose();
-      }
-      suffix = chain.steps[i] * suffix;
-    }
-    chain.from_from_to = suffix;
-    sigma = 0.5 * (sigma + sigma.transpose());
-    const Eigen::LLT<Matrix7d> llt(sigma);
-    SL_CHECK_MSG(llt.info() == Eigen::Success, "chain covariance is not positive definite");
-    // Sigma = L L^T, so S = L^-1 gives S^T S = Sigma^-1.
-    chain.sqrt_information = llt.matrixL().solve(Matrix7d::Identity());
+    if (chain.to == chain.from) BreakRing(&chain, &out, &in_chain);
+    ComposeChain(edges, diagonal, &chain);
     out.chains.push_back(std::move(chain));
     return next_chain;
   };

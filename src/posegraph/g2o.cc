@@ -100,6 +100,10 @@ struct Parser {
     if (std::abs(norm - 1.0) > 1e-2) Fail("a unit quaternion", fmt::format("norm {}", norm));
     return QuaternionFromXyzw(qx, qy, qz, qw).normalized();
   }
+  Eigen::Quaterniond RollPitchYaw() {
+    const double roll = Number("roll"), pitch = Number("pitch"), yaw = Number("yaw");
+    return FromRollPitchYaw(roll, pitch, yaw);
+  }
   std::vector<double> Numbers(int count, const char* what) {
     std::vector<double> v(count);
     for (int i = 0; i < count; ++i) v[i] = Number(what);
@@ -119,6 +123,169 @@ struct Parser {
   }
 };
 
+// What a g2o file holds, record by record (ReadG2o): one method per record kind, then the
+// vertices completed (edges-only files) and the graph built, each error with its line.
+struct G2oRecords {
+  Parser& p;
+  Dim dim = Dim::kUnknown;
+  std::map<int64_t, Sim3d> vertices;
+  std::vector<int64_t> vertex_order;
+  std::vector<PoseGraphEdge> edges;
+  std::vector<int> edge_lines;
+  std::optional<int64_t> fixed;
+  int fixed_line = 0;
+
+  void SetDim(Dim d) {
+    if (dim != Dim::kUnknown && dim != d) p.Fail("records of one dimension (2D or 3D)", "a mix");
+    dim = d;
+  }
+  void AddVertex(int64_t id, const Sim3d& pose) {
+    if (vertices.count(id)) p.Fail("a new vertex id", fmt::format("duplicate id {}", id));
+    vertices[id] = pose;
+    vertex_order.push_back(id);
+  }
+  void AddEdge(const PoseGraphEdge& e) {
+    edges.push_back(e);
+    edge_lines.push_back(p.line_no);
+  }
+
+  // One line's record after its tag; false for an unknown tag.
+  bool Read(const std::string& tag) {
+    if (tag == "VERTEX_SE3:QUAT" || tag == "VERTEX3") {
+      ReadVertex3(tag == "VERTEX3");
+    } else if (tag == "VERTEX_SE2") {
+      SetDim(Dim::k2);
+      const int64_t id = p.Id("vertex id");
+      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+      p.End();
+      AddVertex(id, Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0)));
+    } else if (tag == "EDGE_SE3:QUAT" || tag == "EDGE3") {
+      ReadEdge3(tag == "EDGE3");
+    } else if (tag == "EDGE_SE2") {
+      ReadEdgeSe2();
+    } else if (tag == "FIX") {
+      fixed = p.Id("fixed vertex id");
+      fixed_line = p.line_no;
+      p.End();
+    } else {
+      return false;
+    }
+    return true;
+  }
+
+  // VERTEX_SE3:QUAT (quaternion) or VERTEX3 (roll, pitch, yaw).
+  void ReadVertex3(bool euler) {
+    SetDim(Dim::k3);
+    const int64_t id = p.Id("vertex id");
+    const Eigen::Vector3d t = p.Translation();
+    const Eigen::Quaterniond q = euler ? p.RollPitchYaw() : p.Quaternion();
+    p.End();
+    AddVertex(id, Sim3d(1.0, q, t));
+  }
+
+  // EDGE_SE3:QUAT (quaternion; information on the quaternion's vector part, hence the factor
+  // 0.5 for our rotation vector) or EDGE3 (roll, pitch, yaw).
+  void ReadEdge3(bool euler) {
+    SetDim(Dim::k3);
+    PoseGraphEdge e;
+    e.from = p.Id("from id");
+    e.to = p.Id("to id");
+    const Eigen::Vector3d t = p.Translation();
+    const Eigen::Quaterniond q = euler ? p.RollPitchYaw() : p.Quaternion();
+    const std::vector<double> upper = p.Numbers(21, "information");
+    p.End();
+    p.RequirePositiveDefinite(UpperToSymmetric(upper));
+    e.from_from_to = Sim3d(1.0, q, t);
+    e.information = Embed6(UpperToSymmetric(upper), euler ? 1.0 : 0.5);
+    AddEdge(e);
+  }
+
+  void ReadEdgeSe2() {
+    SetDim(Dim::k2);
+    PoseGraphEdge e;
+    e.from = p.Id("from id");
+    e.to = p.Id("to id");
+    const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+    const std::vector<double> u = p.Numbers(6, "information");
+    p.End();
+    e.from_from_to = Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0));
+    const int idx[3] = {0, 1, 5};
+    const double m[3][3] = {{u[0], u[1], u[2]}, {u[1], u[3], u[4]}, {u[2], u[4], u[5]}};
+    p.RequirePositiveDefinite(Eigen::Matrix3d{
+        {m[0][0], m[0][1], m[0][2]}, {m[1][0], m[1][1], m[1][2]}, {m[2][0], m[2][1], m[2][2]}});
+    e.information.setZero();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) e.information(idx[r], idx[c]) = m[r][c];
+    AddEdge(e);
+  }
+
+  // Every vertex the edges need: a file with VERTEX lines defines every vertex (an edge to an id
+  // it never defined is a typo or a truncated file, not a vertex to invent); an edges-only file
+  // is chained from its lowest id.
+  void CompleteVertices() {
+    if (!vertices.empty()) {
+      for (size_t k = 0; k < edges.size(); ++k) {
+        for (const int64_t id : {edges[k].from, edges[k].to}) {
+          if (!vertices.count(id)) {
+            throw FileError(p.name, edge_lines[k],
+                            "an edge between vertices defined by VERTEX lines",
+                            fmt::format("edge {} -> {}: vertex {} is not defined", edges[k].from,
+                                        edges[k].to, id));
+          }
+        }
+      }
+    }
+    if (vertices.empty()) {
+      int64_t root = edges.front().from;
+      for (const auto& e : edges) root = std::min({root, e.from, e.to});
+      AddVertex(root, Sim3d());
+    }
+    bool changed = true;
+    while (changed) {
+      changed = false;
+      for (const auto& e : edges) {
+        const bool has_from = vertices.count(e.from) > 0;
+        const bool has_to = vertices.count(e.to) > 0;
+        if (has_from && !has_to) {
+          AddVertex(e.to, vertices[e.from] * e.from_from_to);
+          changed = true;
+        } else if (!has_from && has_to) {
+          AddVertex(e.from, vertices[e.to] * e.from_from_to.Inverse());
+          changed = true;
+        }
+      }
+    }
+  }
+
+  PoseGraph Build() const {
+    PoseGraph graph(dim == Dim::k2 ? VertexType::kSe2 : VertexType::kSe3);
+    // Insertion order by id (time order in every benchmark file).
+    for (const auto& [id, pose] : vertices) graph.AddVertex(id, pose);
+    for (size_t k = 0; k < edges.size(); ++k) {
+      if (!vertices.count(edges[k].from) || !vertices.count(edges[k].to)) {
+        throw FileError(p.name, edge_lines[k], "an edge connected to the graph",
+                        fmt::format("edge {} -> {} unreachable", edges[k].from, edges[k].to));
+      }
+      if (edges[k].from == edges[k].to) {
+        throw FileError(p.name, edge_lines[k], "an edge between two vertices",
+                        fmt::format("self-edge on {}", edges[k].from));
+      }
+      try {
+        graph.AddEdge(edges[k]);
+      } catch (const std::invalid_argument& ex) {
+        throw FileError(p.name, edge_lines[k], "a valid edge", ex.what());
+      }
+    }
+    if (fixed) {
+      if (!graph.HasVertex(*fixed)) {
+        throw FileError(p.name, fixed_line, "FIX of a known vertex", fmt::format("id {}", *fixed));
+      }
+      graph.SetFixedVertex(*fixed);
+    }
+    return graph;
+  }
+};
+
 }  // namespace
 
 PoseGraph ReadG2o(const std::filesystem::path& path) {
@@ -130,22 +297,7 @@ PoseGraph ReadG2o(const std::filesystem::path& path) {
 PoseGraph ReadG2o(std::istream& in, const std::string& name) {
   Parser p;
   p.name = name;
-  Dim dim = Dim::kUnknown;
-  std::map<int64_t, Sim3d> vertices;
-  std::vector<int64_t> vertex_order;
-  std::vector<PoseGraphEdge> edges;
-  std::vector<int> edge_lines;
-  std::optional<int64_t> fixed;
-  int fixed_line = 0;
-  auto set_dim = [&](Dim d) {
-    if (dim != Dim::kUnknown && dim != d) p.Fail("records of one dimension (2D or 3D)", "a mix");
-    dim = d;
-  };
-  auto add_vertex = [&](int64_t id, const Sim3d& pose) {
-    if (vertices.count(id)) p.Fail("a new vertex id", fmt::format("duplicate id {}", id));
-    vertices[id] = pose;
-    vertex_order.push_back(id);
-  };
+  G2oRecords records{p};
   std::string line;
   while (std::getline(in, line)) {
     ++p.line_no;
@@ -154,134 +306,14 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
     p.fields.str(line);
     std::string tag;
     if (!(p.fields >> tag) || tag[0] == '#') continue;
-    if (tag == "VERTEX_SE3:QUAT") {
-      set_dim(Dim::k3);
-      const int64_t id = p.Id("vertex id");
-      const Eigen::Vector3d t = p.Translation();
-      const Eigen::Quaterniond q = p.Quaternion();
-      p.End();
-      add_vertex(id, Sim3d(1.0, q, t));
-    } else if (tag == "VERTEX3") {
-      set_dim(Dim::k3);
-      const int64_t id = p.Id("vertex id");
-      const Eigen::Vector3d t = p.Translation();
-      const double roll = p.Number("roll"), pitch = p.Number("pitch"), yaw = p.Number("yaw");
-      p.End();
-      add_vertex(id, Sim3d(1.0, FromRollPitchYaw(roll, pitch, yaw), t));
-    } else if (tag == "VERTEX_SE2") {
-      set_dim(Dim::k2);
-      const int64_t id = p.Id("vertex id");
-      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
-      p.End();
-      add_vertex(id, Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0)));
-    } else if (tag == "EDGE_SE3:QUAT" || tag == "EDGE3") {
-      set_dim(Dim::k3);
-      PoseGraphEdge e;
-      e.from = p.Id("from id");
-      e.to = p.Id("to id");
-      const Eigen::Vector3d t = p.Translation();
-      Eigen::Quaterniond q;
-      if (tag == "EDGE3") {
-        const double roll = p.Number("roll"), pitch = p.Number("pitch"), yaw = p.Number("yaw");
-        q = FromRollPitchYaw(roll, pitch, yaw);
-      } else {
-        q = p.Quaternion();
-      }
-      const std::vector<double> upper = p.Numbers(21, "information");
-      p.End();
-      p.RequirePositiveDefinite(UpperToSymmetric(upper));
-      e.from_from_to = Sim3d(1.0, q, t);
-      e.information = Embed6(UpperToSymmetric(upper), tag == "EDGE3" ? 1.0 : 0.5);
-      edges.push_back(e);
-      edge_lines.push_back(p.line_no);
-    } else if (tag == "EDGE_SE2") {
-      set_dim(Dim::k2);
-      PoseGraphEdge e;
-      e.from = p.Id("from id");
-      e.to = p.Id("to id");
-      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
-      const std::vector<double> u = p.Numbers(6, "information");
-      p.End();
-      e.from_from_to = Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0));
-      const int idx[3] = {0, 1, 5};
-      const double m[3][3] = {{u[0], u[1], u[2]}, {u[1], u[3], u[4]}, {u[2], u[4], u[5]}};
-      p.RequirePositiveDefinite(Eigen::Matrix3d{
-          {m[0][0], m[0][1], m[0][2]}, {m[1][0], m[1][1], m[1][2]}, {m[2][0], m[2][1], m[2][2]}});
-      e.information.setZero();
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) e.information(idx[r], idx[c]) = m[r][c];
-      edges.push_back(e);
-      edge_lines.push_back(p.line_no);
-    } else if (tag == "FIX") {
-      fixed = p.Id("fixed vertex id");
-      fixed_line = p.line_no;
-      p.End();
-    } else {
+    if (!records.Read(tag)) {
       p.Fail("VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2, VERTEX3, EDGE3 or FIX",
              "'" + tag + "'");
     }
   }
-  if (dim == Dim::kUnknown) throw FileError(name, 0, "at least one vertex or edge", "none");
-
-  // A file with VERTEX lines defines every vertex: an edge to an id it never defined is a typo or
-  // a truncated file, not a vertex to invent.
-  if (!vertices.empty()) {
-    for (size_t k = 0; k < edges.size(); ++k) {
-      for (const int64_t id : {edges[k].from, edges[k].to}) {
-        if (!vertices.count(id)) {
-          throw FileError(name, edge_lines[k], "an edge between vertices defined by VERTEX lines",
-                          fmt::format("edge {} -> {}: vertex {} is not defined", edges[k].from,
-                                      edges[k].to, id));
-        }
-      }
-    }
-  }
-  // Edges-only file: no vertex is defined; chain the measurements from the lowest id.
-  if (vertices.empty()) {
-    int64_t root = edges.front().from;
-    for (const auto& e : edges) root = std::min({root, e.from, e.to});
-    add_vertex(root, Sim3d());
-  }
-  bool changed = true;
-  while (changed) {
-    changed = false;
-    for (const auto& e : edges) {
-      const bool has_from = vertices.count(e.from) > 0;
-      const bool has_to = vertices.count(e.to) > 0;
-      if (has_from && !has_to) {
-        add_vertex(e.to, vertices[e.from] * e.from_from_to);
-        changed = true;
-      } else if (!has_from && has_to) {
-        add_vertex(e.from, vertices[e.to] * e.from_from_to.Inverse());
-        changed = true;
-      }
-    }
-  }
-  PoseGraph graph(dim == Dim::k2 ? VertexType::kSe2 : VertexType::kSe3);
-  // Insertion order by id (time order in every benchmark file).
-  for (const auto& [id, pose] : vertices) graph.AddVertex(id, pose);
-  for (size_t k = 0; k < edges.size(); ++k) {
-    if (!vertices.count(edges[k].from) || !vertices.count(edges[k].to)) {
-      throw FileError(name, edge_lines[k], "an edge connected to the graph",
-                      fmt::format("edge {} -> {} unreachable", edges[k].from, edges[k].to));
-    }
-    if (edges[k].from == edges[k].to) {
-      throw FileError(name, edge_lines[k], "an edge between two vertices",
-                      fmt::format("self-edge on {}", edges[k].from));
-    }
-    try {
-      graph.AddEdge(edges[k]);
-    } catch (const std::invalid_argument& ex) {
-      throw FileError(name, edge_lines[k], "a valid edge", ex.what());
-    }
-  }
-  if (fixed) {
-    if (!graph.HasVertex(*fixed)) {
-      throw FileError(name, fixed_line, "FIX of a known vertex", fmt::format("id {}", *fixed));
-    }
-    graph.SetFixedVertex(*fixed);
-  }
-  return graph;
+  if (records.dim == Dim::kUnknown) throw FileError(name, 0, "at least one vertex or edge", "none");
+  records.CompleteVertices();
+  return records.Build();
 }
 
 void WriteG2o(std::ostream& out, const PoseGraph& graph) {

@@ -188,6 +188,82 @@ class CliqueFinder {
   size_t max_steps_ = 0;
 };
 
+// Prefix sums over the raw trajectory for the chain covariance: translation and rotation
+// variances of the steps; the lever-arm weights w_k = rotation + scale variance of the step
+// leaving vertex k, with sum w_k, sum w_k p_k, sum w_k |p_k|^2.
+struct ChainStatistics {
+  std::vector<double> t2, r2, w0, w2;
+  std::vector<Eigen::Vector3d> w1;
+  double ss2 = 0.0;  // scale variance per step
+
+  ChainStatistics(const std::vector<Sim3d>& raw_poses, const std::vector<double>& step_t2,
+                  const std::vector<double>& step_r2, double sr2, double scale_variance)
+      : t2(raw_poses.size(), 0.0),
+        r2(raw_poses.size(), 0.0),
+        w0(raw_poses.size() + 1, 0.0),
+        w2(raw_poses.size() + 1, 0.0),
+        w1(raw_poses.size() + 1, Eigen::Vector3d::Zero()),
+        ss2(scale_variance) {
+    const size_t m = raw_poses.size();
+    for (size_t i = 0; i < m; ++i) {
+      if (i > 0) {
+        t2[i] = t2[i - 1] + step_t2[i];
+        r2[i] = r2[i - 1] + step_r2[i];
+      }
+      const Eigen::Vector3d& p = raw_poses[i].translation;
+      const double w = (i + 1 < m ? step_r2[i + 1] : sr2) + ss2;
+      w0[i + 1] = w0[i] + w;
+      w1[i + 1] = w1[i] + w * p;
+      w2[i + 1] = w2[i] + w * p.squaredNorm();
+    }
+  }
+
+  // Diagonal covariance of the chain from vertex index i to j, expressed at j.
+  Eigen::Matrix<double, 7, 1> Covariance(size_t i, size_t j,
+                                         const std::vector<Sim3d>& raw_poses) const {
+    if (i > j) std::swap(i, j);
+    Eigen::Matrix<double, 7, 1> cov = Eigen::Matrix<double, 7, 1>::Zero();
+    const Eigen::Vector3d& pj = raw_poses[j].translation;
+    // sum_{k in [i, j)} w_k |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
+    const double lever =
+        (w0[j] - w0[i]) * pj.squaredNorm() - 2.0 * pj.dot(w1[j] - w1[i]) + (w2[j] - w2[i]);
+    cov.head<3>().setConstant(t2[j] - t2[i] + std::max(lever, 0.0));
+    cov.segment<3>(3).setConstant(r2[j] - r2[i]);
+    cov[6] = static_cast<double>(j - i) * ss2;
+    return cov;
+  }
+};
+
+// Per-loop marginal variances from the (effective) information. A diagonal information is
+// inverted per component; a full one (a loop whose information came from its inliers) through
+// its eigen-decomposition: marginal variances of the observable part, infinite for every
+// component an unobservable direction touches (1 / diag would be the conditional variance, too
+// small when the components are correlated).
+Eigen::Matrix<double, 7, 1> LoopMarginalVariances(const LoopConstraint& loop) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const Matrix7d info = LoopEffectiveInformation(loop);
+  Eigen::Matrix<double, 7, 1> cov;
+  if (info.isDiagonal(0.0)) {
+    for (int d = 0; d < 7; ++d) cov[d] = info(d, d) > 0 ? 1.0 / info(d, d) : kInf;
+    return cov;
+  }
+  const Eigen::SelfAdjointEigenSolver<Matrix7d> eig(info);
+  const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
+  cov.setZero();
+  for (int k = 0; k < 7; ++k) {
+    const double lambda = eig.eigenvalues()[k];
+    const Eigen::Matrix<double, 7, 1> v = eig.eigenvectors().col(k);
+    for (int d = 0; d < 7; ++d) {
+      if (lambda > tol) {
+        cov[d] += v[d] * v[d] / lambda;
+      } else if (std::abs(v[d]) > 1e-6) {
+        cov[d] = kInf;
+      }
+    }
+  }
+  return cov;
+}
+
 }  // namespace
 
 void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
@@ -220,65 +296,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
                      .eigenvalues()
                      .maxCoeff();
   }
-  // Prefix sums over the raw trajectory for the chain covariance: translation and rotation
-  // variances of the steps; the lever-arm weights w_k = rotation + scale variance of the step
-  // leaving vertex k, with sum w_k, sum w_k p_k, sum w_k |p_k|^2.
-  std::vector<double> t2(m, 0.0), r2(m, 0.0);
-  std::vector<double> w0(m + 1, 0.0), w2(m + 1, 0.0);
-  std::vector<Eigen::Vector3d> w1(m + 1, Eigen::Vector3d::Zero());
-  for (size_t i = 0; i < m; ++i) {
-    if (i > 0) {
-      t2[i] = t2[i - 1] + step_t2[i];
-      r2[i] = r2[i - 1] + step_r2[i];
-    }
-    const Eigen::Vector3d& p = raw_poses_[i].translation;
-    const double w = (i + 1 < m ? step_r2[i + 1] : sr2) + ss2;
-    w0[i + 1] = w0[i] + w;
-    w1[i + 1] = w1[i] + w * p;
-    w2[i + 1] = w2[i] + w * p.squaredNorm();
-  }
-  // Diagonal covariance of the chain from vertex index i to j, expressed at j.
-  auto chain_cov = [&](size_t i, size_t j) {
-    if (i > j) std::swap(i, j);
-    Eigen::Matrix<double, 7, 1> cov = Eigen::Matrix<double, 7, 1>::Zero();
-    const Eigen::Vector3d& pj = raw_poses_[j].translation;
-    // sum_{k in [i, j)} w_k |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
-    const double lever =
-        (w0[j] - w0[i]) * pj.squaredNorm() - 2.0 * pj.dot(w1[j] - w1[i]) + (w2[j] - w2[i]);
-    cov.head<3>().setConstant(t2[j] - t2[i] + std::max(lever, 0.0));
-    cov.segment<3>(3).setConstant(r2[j] - r2[i]);
-    cov[6] = static_cast<double>(j - i) * ss2;
-    return cov;
-  };
-  // Per-loop marginal variances from the (effective) information. A diagonal information is
-  // inverted per component; a full one (a loop whose information came from its inliers) through
-  // its eigen-decomposition: marginal variances of the observable part, infinite for every
-  // component an unobservable direction touches (1 / diag would be the conditional variance, too
-  // small when the components are correlated).
-  auto loop_cov = [&](const LoopConstraint& loop) {
-    constexpr double kInf = std::numeric_limits<double>::infinity();
-    const Matrix7d info = LoopEffectiveInformation(loop);
-    Eigen::Matrix<double, 7, 1> cov;
-    if (info.isDiagonal(0.0)) {
-      for (int d = 0; d < 7; ++d) cov[d] = info(d, d) > 0 ? 1.0 / info(d, d) : kInf;
-      return cov;
-    }
-    const Eigen::SelfAdjointEigenSolver<Matrix7d> eig(info);
-    const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
-    cov.setZero();
-    for (int k = 0; k < 7; ++k) {
-      const double lambda = eig.eigenvalues()[k];
-      const Eigen::Matrix<double, 7, 1> v = eig.eigenvectors().col(k);
-      for (int d = 0; d < 7; ++d) {
-        if (lambda > tol) {
-          cov[d] += v[d] * v[d] / lambda;
-        } else if (std::abs(v[d]) > 1e-6) {
-          cov[d] = kInf;
-        }
-      }
-    }
-    return cov;
-  };
+  const ChainStatistics chains(raw_poses_, step_t2, step_r2, sr2, ss2);
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot
@@ -287,7 +305,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   for (size_t a = 0; a < n; ++a) {
     const LoopConstraint& la = loops_[a];
     const size_t qa = Index(la.query_id), ma = Index(la.match_id);
-    const Eigen::Matrix<double, 7, 1> cov_a = loop_cov(la);
+    const Eigen::Matrix<double, 7, 1> cov_a = LoopMarginalVariances(la);
     for (size_t b = std::max(a + 1, from); b < n; ++b) {
       const LoopConstraint& lb = loops_[b];
       const size_t qb = Index(lb.query_id), mb = Index(lb.match_id);
@@ -297,8 +315,9 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
                           (raw_poses_[mb].Inverse() * raw_poses_[ma]);
       Vector7d e = cycle.Log();
       if (!sim3) e[6] = 0.0;
-      const Eigen::Matrix<double, 7, 1> cov =
-          cov_a + loop_cov(lb) + chain_cov(qa, qb) + chain_cov(ma, mb);
+      const Eigen::Matrix<double, 7, 1> cov = cov_a + LoopMarginalVariances(lb) +
+                                              chains.Covariance(qa, qb, raw_poses_) +
+                                              chains.Covariance(ma, mb, raw_poses_);
       double chi2 = 0.0;
       int dof = 0;
       for (int d = 0; d < 7; ++d) {

@@ -461,6 +461,91 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
   return summary;
 }
 
+namespace {
+
+ceres::Solver::Options SolverOptions(const PoseGraphOptions& options) {
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.initial_trust_region_radius = options.initial_trust_region_radius;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.num_threads = options.num_threads;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  return solver_options;
+}
+
+PoseGraphStatus StatusOf(const ceres::Solver::Summary& summary, bool interrupted) {
+  if (interrupted) return PoseGraphStatus::kInterrupted;
+  if (summary.termination_type == ceres::CONVERGENCE) return PoseGraphStatus::kConverged;
+  if (summary.termination_type == ceres::NO_CONVERGENCE) return PoseGraphStatus::kMaxIterations;
+  return PoseGraphStatus::kFailed;
+}
+
+// The used loops' residuals: switchable (a switch variable in [0, 1] per loop with its prior) or
+// plain, each with its information x loop_scale.
+template <typename ParamOf, typename MakeEdge>
+void AddLoopResiduals(const std::vector<LoopConstraint>& loops, const std::vector<bool>& use_loop,
+                      double loop_scale, const PoseGraphOptions& options, bool switchable,
+                      ParamOf param_of, MakeEdge make_edge, ceres::Problem* problem,
+                      std::vector<double>* switches) {
+  for (size_t k = 0; k < loops.size(); ++k) {
+    if (!use_loop[k]) continue;
+    const LoopConstraint& loop = loops[k];
+    const Matrix7d sqrt_info =
+        std::sqrt(loop_scale) * SqrtInformation(LoopEffectiveInformation(loop));
+    double* match = param_of(loop.match_id);
+    double* query = param_of(loop.query_id);
+    if (switchable) {
+      double* s = &(*switches)[k];
+      auto* cost = new ceres::AutoDiffCostFunction<SwitchableEdgeError, 7, 8, 8, 1>(
+          new SwitchableEdgeError(loop.match_from_query, sqrt_info));
+      problem->AddResidualBlock(cost, MakeLoss(options.loop_loss, options.loss_scale), match, query,
+                                s);
+      problem->AddResidualBlock(new SwitchPrior(options.switch_prior_sigma), nullptr, s);
+      problem->SetParameterLowerBound(s, 0, 0.0);
+      problem->SetParameterUpperBound(s, 0, 1.0);
+    } else {
+      problem->AddResidualBlock(make_edge(loop.match_from_query, sqrt_info),
+                                MakeLoss(options.loop_loss, options.loss_scale), match, query);
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<bool> PoseGraph::VerticesToKeep(const std::vector<bool>& use_loop) const {
+  std::vector<bool> must_keep(ids_.size(), false);
+  must_keep[Index(fixed_vertex())] = true;
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    if (!use_loop[k]) continue;
+    must_keep[Index(loops_[k].query_id)] = true;
+    must_keep[Index(loops_[k].match_id)] = true;
+  }
+  return must_keep;
+}
+
+void PoseGraph::AdoptSolution(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                              const std::vector<double>& switches, PoseGraphSummary* summary) {
+  const bool switchable = UsesSwitches(options);
+  for (size_t i = 0; i < params_.size(); ++i) {
+    Vector8d& p = params_[i];
+    p.head<4>().normalize();
+    poses_[i] = Sim3d::FromVector(p);
+  }
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    const bool rejected = !use_loop[k] || (switchable && switches[k] < options.switch_reject_below);
+    if (rejected) {
+      summary->rejected_loops.push_back(k);
+      summary->rejected_loop_ids.push_back({loops_[k].query_id, loops_[k].match_id});
+    } else {
+      summary->loop_checks.push_back(CheckLoop(k, options.pcm.confidence));
+    }
+  }
+}
+
 void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
                           double loop_scale, const std::atomic<bool>* interrupt,
                           PoseGraphSummary* out) {
@@ -472,15 +557,8 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
   const bool reduce = options.reduce_chains && type_ == VertexType::kSim3;
   internal::ChainReduction reduction;
   if (reduce) {
-    std::vector<bool> must_keep(ids_.size(), false);
-    must_keep[Index(fixed_vertex())] = true;
-    for (size_t k = 0; k < loops_.size(); ++k) {
-      if (!use_loop[k]) continue;
-      must_keep[Index(loops_[k].query_id)] = true;
-      must_keep[Index(loops_[k].match_id)] = true;
-    }
-    reduction =
-        internal::ReduceChains(edges_, edge_ends_, std::move(must_keep), options.max_chain_length);
+    reduction = internal::ReduceChains(edges_, edge_ends_, VerticesToKeep(use_loop),
+                                       options.max_chain_length);
   }
   double reduction_seconds = reduction_timer.ElapsedMs() / 1000.0;
 
@@ -516,39 +594,13 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
     for (const PoseGraphEdge& e : edges_) add_edge(e);
   }
   std::vector<double> switches(loops_.size(), 1.0);
-  for (size_t k = 0; k < loops_.size(); ++k) {
-    if (!use_loop[k]) continue;
-    const LoopConstraint& loop = loops_[k];
-    const Matrix7d sqrt_info =
-        std::sqrt(loop_scale) * SqrtInformation(LoopEffectiveInformation(loop));
-    double* match = params_[Index(loop.match_id)].data();
-    double* query = params_[Index(loop.query_id)].data();
-    if (switchable) {
-      auto* cost = new ceres::AutoDiffCostFunction<SwitchableEdgeError, 7, 8, 8, 1>(
-          new SwitchableEdgeError(loop.match_from_query, sqrt_info));
-      problem.AddResidualBlock(cost, MakeLoss(options.loop_loss, options.loss_scale), match, query,
-                               &switches[k]);
-      problem.AddResidualBlock(new SwitchPrior(options.switch_prior_sigma), nullptr, &switches[k]);
-      problem.SetParameterLowerBound(&switches[k], 0, 0.0);
-      problem.SetParameterUpperBound(&switches[k], 0, 1.0);
-    } else {
-      problem.AddResidualBlock(make_edge(loop.match_from_query, sqrt_info),
-                               MakeLoss(options.loop_loss, options.loss_scale), match, query);
-    }
-  }
+  AddLoopResiduals(
+      loops_, use_loop, loop_scale, options, switchable,
+      [this](int64_t id) { return params_[Index(id)].data(); }, make_edge, &problem, &switches);
   // Gauge: see SetFixedVertex.
   problem.SetParameterBlockConstant(params_[Index(fixed_vertex())].data());
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.initial_trust_region_radius = options.initial_trust_region_radius;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.num_threads = options.num_threads;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Options solver_options = SolverOptions(options);
   InterruptCallback interrupt_callback(interrupt);
   LogCallback log_callback;
   if (interrupt != nullptr) solver_options.callbacks.push_back(&interrupt_callback);
@@ -567,15 +619,7 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
   summary.final_cost = ceres_summary.final_cost;
   summary.iterations = static_cast<int>(ceres_summary.iterations.size()) - 1;
   summary.ceres_message = ceres_summary.message;
-  if (interrupt_callback.interrupted()) {
-    summary.status = PoseGraphStatus::kInterrupted;
-  } else if (ceres_summary.termination_type == ceres::CONVERGENCE) {
-    summary.status = PoseGraphStatus::kConverged;
-  } else if (ceres_summary.termination_type == ceres::NO_CONVERGENCE) {
-    summary.status = PoseGraphStatus::kMaxIterations;
-  } else {
-    summary.status = PoseGraphStatus::kFailed;
-  }
+  summary.status = StatusOf(ceres_summary, interrupt_callback.interrupted());
   if (summary.status == PoseGraphStatus::kFailed) {
     params_ = backup;
     Logger().warn("pose graph solve failed: {}", ceres_summary.message);
@@ -593,20 +637,7 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
     reduction_seconds += reduction_timer.ElapsedMs() / 1000.0;
   }
   summary.solve_seconds = ceres_summary.total_time_in_seconds + reduction_seconds;
-  for (size_t i = 0; i < params_.size(); ++i) {
-    Vector8d& p = params_[i];
-    p.head<4>().normalize();
-    poses_[i] = Sim3d::FromVector(p);
-  }
-  for (size_t k = 0; k < loops_.size(); ++k) {
-    const bool rejected = !use_loop[k] || (switchable && switches[k] < options.switch_reject_below);
-    if (rejected) {
-      summary.rejected_loops.push_back(k);
-      summary.rejected_loop_ids.push_back({loops_[k].query_id, loops_[k].match_id});
-    } else {
-      summary.loop_checks.push_back(CheckLoop(k, options.pcm.confidence));
-    }
-  }
+  AdoptSolution(options, use_loop, switches, &summary);
 }
 
 Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {

@@ -266,7 +266,110 @@ struct SearchArea::Impl {
                           int32_t eligible, std::vector<int32_t>* out, size_t* cells) const;
   void CollectNearPoint(const Eigen::Vector2d& x, double r, int32_t eligible,
                         std::vector<int32_t>* out, size_t* cells) const;
+
+  // The steps of Query under kPaper.
+  // Motion direction at t: towards x'_t from the latest earlier keyframe at least min_motion
+  // away (zero when there is none within motion_lookback).
+  Eigen::Vector2d MotionDirection(int32_t t) const;
+  // The motion ray against past segments, then against the backward half-line from x'_0.
+  Hit CastMotionRay(const Eigen::Vector2d& qt, const Eigen::Vector2d& dir, int32_t eligible,
+                    size_t* cells) const;
+  // The index range [lo, hi] of the paper's area from the ray's hit (start: nearest keyframe to
+  // p, end: nearest to p' on the perpendicular, -1 when none; side of the wedge), with the
+  // branch, p, p' and their keyframes written to *result.
+  struct PaperRange {
+    int32_t lo = 0, hi = 0, start = -1, end = -1;
+    int side = 0;
+  };
+  PaperRange PaperIndexRange(const Eigen::Vector2d& qt, const Eigen::Vector2d& dir, const Hit& hit,
+                             int32_t eligible, SearchAreaResult* result) const;
+  // Drift widening of an index range: keyframes within `margin` path length of its ends.
+  void WidenByPath(double margin, int32_t eligible, int32_t* lo, int32_t* hi) const;
 };
+
+Eigen::Vector2d SearchArea::Impl::MotionDirection(int32_t t) const {
+  const Eigen::Vector2d qt = projected[t];
+  for (int32_t j = t - 1; j >= std::max(0, t - options.motion_lookback); --j) {
+    const Eigen::Vector2d d = qt - projected[j];
+    if (d.norm() >= options.min_motion) return d.normalized();
+  }
+  return Eigen::Vector2d::Zero();
+}
+
+SearchArea::Impl::Hit SearchArea::Impl::CastMotionRay(const Eigen::Vector2d& qt,
+                                                      const Eigen::Vector2d& dir, int32_t eligible,
+                                                      size_t* cells) const {
+  Hit hit = CastRay(qt, dir, eligible, cells);
+  for (int32_t j = 1; j <= std::min(eligible - 1, options.motion_lookback); ++j) {
+    const Eigen::Vector2d back = projected[0] - projected[j];
+    if (back.norm() >= options.min_motion) {
+      const Eigen::Vector2d q0 = projected[0];
+      const double s = RayHit(qt, dir, q0, q0 + back.normalized(), true);
+      if (s < hit.s || (s == hit.s && s < kInf)) hit = {s, 0};
+      break;
+    }
+  }
+  return hit;
+}
+
+SearchArea::Impl::PaperRange SearchArea::Impl::PaperIndexRange(const Eigen::Vector2d& qt,
+                                                               const Eigen::Vector2d& dir,
+                                                               const Hit& hit, int32_t eligible,
+                                                               SearchAreaResult* result) const {
+  const SearchAreaOptions& o = options;
+  PaperRange r;
+  if (hit.segment < 0) {
+    result->branch = PaperBranch::kNoIntersection;
+    result->fallback_used = true;
+    r.lo = 0;
+    r.hi = std::min(eligible - 1, o.fallback_count - 1);
+    return r;
+  }
+  result->branch = hit.segment == 0 ? PaperBranch::kBackwardRayHit : PaperBranch::kSegmentHit;
+  const Eigen::Vector2d p = qt + hit.s * dir;
+  result->p = p;
+  const double bound = hit.segment == 0 ? (p - projected[0]).norm()
+                                        : std::min((p - projected[hit.segment - 1]).norm(),
+                                                   (p - projected[hit.segment]).norm());
+  r.start = Nearest(p, eligible, bound, &result->cells_visited);
+  result->start_keyframe = ids[r.start];
+  // Perpendicular h through x'_t: nearest hit on either side (left wins a tie).
+  const Eigen::Vector2d normal(-dir.y(), dir.x());
+  const Hit left = CastRay(qt, normal, eligible, &result->cells_visited);
+  const Hit right = CastRay(qt, -normal, eligible, &result->cells_visited);
+  if (left.segment >= 0 || right.segment >= 0) {
+    r.side = left.s <= right.s ? 1 : -1;
+    const Hit& h = r.side > 0 ? left : right;
+    const Eigen::Vector2d p_end = qt + h.s * r.side * normal;
+    result->p_end = p_end;
+    const double end_bound =
+        std::min((p_end - projected[h.segment - 1]).norm(), (p_end - projected[h.segment]).norm());
+    r.end = Nearest(p_end, eligible, end_bound, &result->cells_visited);
+    result->end_keyframe = ids[r.end];
+    r.lo = std::min(r.start, r.end);
+    r.hi = std::max(r.start, r.end);
+  } else {
+    const int32_t half = o.fallback_count / 2;
+    r.lo = std::max(0, r.start - half);
+    r.hi = std::min(eligible - 1, r.start + half);
+  }
+  result->wedge_side = r.side;
+  return r;
+}
+
+void SearchArea::Impl::WidenByPath(double margin, int32_t eligible, int32_t* lo,
+                                   int32_t* hi) const {
+  if (margin <= 0.0) return;
+  const double lo_len = path_length[*lo] - margin;
+  *lo = static_cast<int32_t>(
+      std::lower_bound(path_length.begin(), path_length.begin() + *lo, lo_len) -
+      path_length.begin());
+  const double hi_len = path_length[*hi] + margin;
+  *hi = static_cast<int32_t>(
+            std::upper_bound(path_length.begin() + *hi, path_length.begin() + eligible, hi_len) -
+            path_length.begin()) -
+        1;
+}
 
 void SearchArea::Impl::FitPlane() {
   const double n = static_cast<double>(positions.size());
@@ -457,6 +560,12 @@ size_t SearchArea::size() const { return impl_->ids.size(); }
 const SearchAreaOptions& SearchArea::options() const { return impl_->options; }
 PlaneFrame SearchArea::plane() const { return impl_->plane; }
 
+double SearchArea::PathLength(int64_t keyframe_id) const {
+  const auto it = impl_->index_of.find(keyframe_id);
+  SL_CHECK_MSG(it != impl_->index_of.end(), "PathLength: unknown keyframe {}", keyframe_id);
+  return impl_->path_length[static_cast<size_t>(it->second)];
+}
+
 void SearchArea::Add(int64_t keyframe_id, const Eigen::Vector3d& p_in_world) {
   Impl& m = *impl_;
   SL_CHECK_MSG(p_in_world.allFinite(), "keyframe {} has a non-finite position", keyframe_id);
@@ -539,84 +648,18 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
     return finish();
   }
 
-  // kPaper. Motion direction from the latest earlier keyframe at least min_motion away.
+  // kPaper.
   const Eigen::Vector2d qt = m.projected[t];
-  Eigen::Vector2d dir = Eigen::Vector2d::Zero();
-  for (int32_t j = t - 1; j >= std::max(0, t - o.motion_lookback); --j) {
-    const Eigen::Vector2d d = qt - m.projected[j];
-    if (d.norm() >= o.min_motion) {
-      dir = d.normalized();
-      break;
-    }
-  }
+  const Eigen::Vector2d dir = m.MotionDirection(t);
   if (dir.isZero()) {
     result.status = SearchAreaStatus::kNoMotion;
     return result;
   }
   result.direction = dir;
-
-  // Motion ray against past segments, then against the backward half-line from x'_0.
-  Impl::Hit hit = m.CastRay(qt, dir, eligible, &result.cells_visited);
-  for (int32_t j = 1; j <= std::min(eligible - 1, o.motion_lookback); ++j) {
-    const Eigen::Vector2d back = m.projected[0] - m.projected[j];
-    if (back.norm() >= o.min_motion) {
-      const Eigen::Vector2d q0 = m.projected[0];
-      const double s = RayHit(qt, dir, q0, q0 + back.normalized(), true);
-      if (s < hit.s || (s == hit.s && s < kInf)) hit = {s, 0};
-      break;
-    }
-  }
-
-  int32_t lo = 0, hi = 0, start = -1, end = -1;
-  int side = 0;
-  if (hit.segment < 0) {
-    result.branch = PaperBranch::kNoIntersection;
-    result.fallback_used = true;
-    lo = 0;
-    hi = std::min(eligible - 1, o.fallback_count - 1);
-  } else {
-    result.branch = hit.segment == 0 ? PaperBranch::kBackwardRayHit : PaperBranch::kSegmentHit;
-    const Eigen::Vector2d p = qt + hit.s * dir;
-    result.p = p;
-    const double bound = hit.segment == 0 ? (p - m.projected[0]).norm()
-                                          : std::min((p - m.projected[hit.segment - 1]).norm(),
-                                                     (p - m.projected[hit.segment]).norm());
-    start = m.Nearest(p, eligible, bound, &result.cells_visited);
-    result.start_keyframe = m.ids[start];
-    // Perpendicular h through x'_t: nearest hit on either side (left wins a tie).
-    const Eigen::Vector2d normal(-dir.y(), dir.x());
-    const Impl::Hit left = m.CastRay(qt, normal, eligible, &result.cells_visited);
-    const Impl::Hit right = m.CastRay(qt, -normal, eligible, &result.cells_visited);
-    if (left.segment >= 0 || right.segment >= 0) {
-      side = left.s <= right.s ? 1 : -1;
-      const Impl::Hit& h = side > 0 ? left : right;
-      const Eigen::Vector2d p_end = qt + h.s * side * normal;
-      result.p_end = p_end;
-      const double end_bound = std::min((p_end - m.projected[h.segment - 1]).norm(),
-                                        (p_end - m.projected[h.segment]).norm());
-      end = m.Nearest(p_end, eligible, end_bound, &result.cells_visited);
-      result.end_keyframe = m.ids[end];
-      lo = std::min(start, end);
-      hi = std::max(start, end);
-    } else {
-      const int32_t half = o.fallback_count / 2;
-      lo = std::max(0, start - half);
-      hi = std::min(eligible - 1, start + half);
-    }
-    result.wedge_side = side;
-  }
-  // Drift widening of the index range: keyframes within `margin` path length of its ends.
-  if (margin > 0.0) {
-    const double lo_len = m.path_length[lo] - margin;
-    lo = static_cast<int32_t>(
-        std::lower_bound(m.path_length.begin(), m.path_length.begin() + lo, lo_len) -
-        m.path_length.begin());
-    const double hi_len = m.path_length[hi] + margin;
-    hi = static_cast<int32_t>(std::upper_bound(m.path_length.begin() + hi,
-                                               m.path_length.begin() + eligible, hi_len) -
-                              m.path_length.begin()) -
-         1;
-  }
+  const Impl::Hit hit = m.CastMotionRay(qt, dir, eligible, &result.cells_visited);
+  Impl::PaperRange range = m.PaperIndexRange(qt, dir, hit, eligible, &result);
+  m.WidenByPath(margin, eligible, &range.lo, &range.hi);
+  const auto [lo, hi, start, end, side] = range;
   result.range_first = m.ids[lo];
   result.range_last = m.ids[hi];
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 #include "sparseloop/core/check.h"
@@ -108,6 +109,102 @@ void GaussianBlur(std::vector<float>& img, int width, int height, double sigma, 
   });
 }
 
+// Quad q in the camera frame with its pixel bounding box; nothing when it is farther than
+// max_distance, behind the near plane or outside the image.
+std::optional<VisibleQuad> ProjectQuad(const Quad& quad, int index, const Rigid3d& world_from_cam,
+                                       const CameraIntrinsics& camera,
+                                       const RenderOptions& options) {
+  const int W = camera.width, H = camera.height;
+  const Rigid3d cam_from_world = world_from_cam.Inverse();
+  const Eigen::Matrix3d R = cam_from_world.RotationMatrix();
+  const Eigen::Vector3d cam_in_world = world_from_cam.translation;
+  VisibleQuad vq;
+  vq.index = index;
+  vq.infinite = quad.infinite;
+  vq.size_u = quad.size_u;
+  vq.size_v = quad.size_v;
+  if (!quad.infinite) {
+    // Closest point of the rectangle to the camera, for distance culling.
+    const Eigen::Vector3d r = cam_in_world - quad.origin;
+    const double a = std::clamp(r.dot(quad.axis_u), 0.0, quad.size_u);
+    const double b = std::clamp(r.dot(quad.axis_v), 0.0, quad.size_v);
+    const Eigen::Vector3d closest = quad.origin + a * quad.axis_u + b * quad.axis_v;
+    if ((closest - cam_in_world).norm() > options.max_distance) return std::nullopt;
+  }
+  vq.o = cam_from_world * quad.origin;
+  vq.u = R * quad.axis_u;
+  vq.v = R * quad.axis_v;
+  vq.n = vq.u.cross(vq.v).normalized();
+  vq.n_dot_o = vq.n.dot(vq.o);
+  vq.to = cam_from_world * quad.tex_origin;
+  vq.tu = R * quad.tex_u;
+  vq.tv = R * quad.tex_v;
+  if (quad.infinite) {
+    vq.u0 = 0, vq.u1 = W - 1, vq.v0 = 0, vq.v1 = H - 1;
+    return vq;
+  }
+  const std::vector<Eigen::Vector3d> corners = {vq.o, vq.o + quad.size_u * vq.u,
+                                                vq.o + quad.size_u * vq.u + quad.size_v * vq.v,
+                                                vq.o + quad.size_v * vq.v};
+  const auto clipped = ClipNear(corners, options.near);
+  if (clipped.empty()) return std::nullopt;
+  double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+  for (const auto& p : clipped) {
+    const double pu = camera.fx * p.x() / p.z() + camera.cx;
+    const double pv = camera.fy * p.y() / p.z() + camera.cy;
+    umin = std::min(umin, pu), umax = std::max(umax, pu);
+    vmin = std::min(vmin, pv), vmax = std::max(vmax, pv);
+  }
+  vq.u0 = static_cast<int>(std::max(0.0, std::floor(umin)));
+  vq.u1 = static_cast<int>(std::min(W - 1.0, std::ceil(umax)));
+  vq.v0 = static_cast<int>(std::max(0.0, std::floor(vmin)));
+  vq.v1 = static_cast<int>(std::min(H - 1.0, std::ceil(vmax)));
+  if (vq.u0 > vq.u1 || vq.v0 > vq.v1) return std::nullopt;
+  return vq;
+}
+
+// Texture-space footprint of the pixel whose ray d hits quad q at X: the step to the hits of
+// the neighbouring pixel rays on the quad's plane.
+double TextureFootprint(const VisibleQuad& q, const Eigen::Vector3d& d, const Eigen::Vector3d& X,
+                        const CameraIntrinsics& camera) {
+  double footprint = 0.0;
+  for (const Eigen::Vector3d& step :
+       {Eigen::Vector3d(1.0 / camera.fx, 0, 0), Eigen::Vector3d(0, 1.0 / camera.fy, 0)}) {
+    const Eigen::Vector3d d1 = d + step;
+    const double denom = q.n.dot(d1);
+    const double z1 = std::abs(denom) > 1e-12 ? q.n_dot_o / denom : -1.0;
+    double f;
+    if (z1 > 0.0) {
+      const Eigen::Vector3d dX = z1 * d1 - X;
+      f = std::max(std::abs(dX.dot(q.tu)), std::abs(dX.dot(q.tv)));
+    } else {
+      f = 1e3;  // grazing: the neighbour ray misses the plane; use the coarsest level
+    }
+    footprint = std::max(footprint, f);
+  }
+  return footprint;
+}
+
+// Optics and sensor: blur, exposure/gamma, noise, quantisation of the radiance into the image.
+void ExposeImage(std::vector<float>& radiance, const RenderOptions& options,
+                 const Photometric& photometric, uint64_t frame_seed, Image8* image) {
+  const int W = image->width, H = image->height;
+  if (options.blur_sigma > 0.0)
+    GaussianBlur(radiance, W, H, options.blur_sigma, options.num_threads);
+  image->pixels.resize(radiance.size());
+  ParallelRows(H, options.num_threads, [&](int v) {
+    SplitMix64 rng(HashCombine(options.seed, static_cast<int64_t>(frame_seed), v));
+    for (int u = 0; u < W; ++u) {
+      const size_t i = static_cast<size_t>(v) * W + u;
+      double x = std::clamp(photometric.gain * radiance[i] / 255.0, 0.0, 1.0);
+      if (photometric.gamma != 1.0) x = std::pow(x, photometric.gamma);
+      double value = 255.0 * x;
+      if (options.noise_sigma > 0.0) value += options.noise_sigma * rng.Normal();
+      image->pixels[i] = static_cast<uint8_t>(std::clamp(std::lround(value), 0L, 255L));
+    }
+  });
+}
+
 }  // namespace
 
 RenderedFrame RenderFrame(const World& world, const CameraIntrinsics& camera,
@@ -121,57 +218,11 @@ RenderedFrame RenderFrame(const World& world, const CameraIntrinsics& camera,
                "photometric gain and gamma must be > 0");
   SL_CHECK_MSG(world.textures != nullptr && !world.textures->empty(), "world has no textures");
   const int W = camera.width, H = camera.height;
-  const Rigid3d cam_from_world = world_from_cam.Inverse();
-  const Eigen::Matrix3d R = cam_from_world.RotationMatrix();
-  const Eigen::Vector3d cam_in_world = world_from_cam.translation;
-
   // 1. Visible quads in the camera frame with their pixel bounding boxes.
   std::vector<VisibleQuad> visible;
   for (size_t q = 0; q < world.quads.size(); ++q) {
-    const Quad& quad = world.quads[q];
-    VisibleQuad vq;
-    vq.index = static_cast<int>(q);
-    vq.infinite = quad.infinite;
-    vq.size_u = quad.size_u;
-    vq.size_v = quad.size_v;
-    if (!quad.infinite) {
-      // Closest point of the rectangle to the camera, for distance culling.
-      const Eigen::Vector3d r = cam_in_world - quad.origin;
-      const double a = std::clamp(r.dot(quad.axis_u), 0.0, quad.size_u);
-      const double b = std::clamp(r.dot(quad.axis_v), 0.0, quad.size_v);
-      const Eigen::Vector3d closest = quad.origin + a * quad.axis_u + b * quad.axis_v;
-      if ((closest - cam_in_world).norm() > options.max_distance) continue;
-    }
-    vq.o = cam_from_world * quad.origin;
-    vq.u = R * quad.axis_u;
-    vq.v = R * quad.axis_v;
-    vq.n = vq.u.cross(vq.v).normalized();
-    vq.n_dot_o = vq.n.dot(vq.o);
-    vq.to = cam_from_world * quad.tex_origin;
-    vq.tu = R * quad.tex_u;
-    vq.tv = R * quad.tex_v;
-    if (quad.infinite) {
-      vq.u0 = 0, vq.u1 = W - 1, vq.v0 = 0, vq.v1 = H - 1;
-    } else {
-      const std::vector<Eigen::Vector3d> corners = {vq.o, vq.o + quad.size_u * vq.u,
-                                                    vq.o + quad.size_u * vq.u + quad.size_v * vq.v,
-                                                    vq.o + quad.size_v * vq.v};
-      const auto clipped = ClipNear(corners, options.near);
-      if (clipped.empty()) continue;
-      double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
-      for (const auto& p : clipped) {
-        const double pu = camera.fx * p.x() / p.z() + camera.cx;
-        const double pv = camera.fy * p.y() / p.z() + camera.cy;
-        umin = std::min(umin, pu), umax = std::max(umax, pu);
-        vmin = std::min(vmin, pv), vmax = std::max(vmax, pv);
-      }
-      vq.u0 = static_cast<int>(std::max(0.0, std::floor(umin)));
-      vq.u1 = static_cast<int>(std::min(W - 1.0, std::ceil(umax)));
-      vq.v0 = static_cast<int>(std::max(0.0, std::floor(vmin)));
-      vq.v1 = static_cast<int>(std::min(H - 1.0, std::ceil(vmax)));
-      if (vq.u0 > vq.u1 || vq.v0 > vq.v1) continue;
-    }
-    visible.push_back(vq);
+    if (auto vq = ProjectQuad(world.quads[q], static_cast<int>(q), world_from_cam, camera, options))
+      visible.push_back(*vq);
   }
 
   std::vector<double> xn(W);
@@ -219,42 +270,14 @@ RenderedFrame RenderFrame(const World& world, const CameraIntrinsics& camera,
       const double z = best_z[u];
       const Eigen::Vector3d X = z * d;
       const Eigen::Vector2d st((X - q.to).dot(q.tu), (X - q.to).dot(q.tv));
-      // Footprint: texture-space step to the hits of the neighbouring pixel rays on this plane.
-      double footprint = 0.0;
-      for (const Eigen::Vector3d& step :
-           {Eigen::Vector3d(1.0 / camera.fx, 0, 0), Eigen::Vector3d(0, 1.0 / camera.fy, 0)}) {
-        const Eigen::Vector3d d1 = d + step;
-        const double denom = q.n.dot(d1);
-        const double z1 = std::abs(denom) > 1e-12 ? q.n_dot_o / denom : -1.0;
-        double f;
-        if (z1 > 0.0) {
-          const Eigen::Vector3d dX = z1 * d1 - X;
-          f = std::max(std::abs(dX.dot(q.tu)), std::abs(dX.dot(q.tv)));
-        } else {
-          f = 1e3;  // grazing: the neighbour ray misses the plane; use the coarsest level
-        }
-        footprint = std::max(footprint, f);
-      }
+      const double footprint = TextureFootprint(q, d, X, camera);
       out[u] = world.Shade(world.quads[q.index].material, st, footprint);
       depth[u] = static_cast<float>(z);
     }
   });
 
-  // 3. Optics and sensor: blur, exposure/gamma, noise, quantisation.
-  if (options.blur_sigma > 0.0)
-    GaussianBlur(radiance, W, H, options.blur_sigma, options.num_threads);
-  frame.image.pixels.resize(radiance.size());
-  ParallelRows(H, options.num_threads, [&](int v) {
-    SplitMix64 rng(HashCombine(options.seed, static_cast<int64_t>(frame_seed), v));
-    for (int u = 0; u < W; ++u) {
-      const size_t i = static_cast<size_t>(v) * W + u;
-      double x = std::clamp(photometric.gain * radiance[i] / 255.0, 0.0, 1.0);
-      if (photometric.gamma != 1.0) x = std::pow(x, photometric.gamma);
-      double value = 255.0 * x;
-      if (options.noise_sigma > 0.0) value += options.noise_sigma * rng.Normal();
-      frame.image.pixels[i] = static_cast<uint8_t>(std::clamp(std::lround(value), 0L, 255L));
-    }
-  });
+  // 3. Optics and sensor.
+  ExposeImage(radiance, options, photometric, frame_seed, &frame.image);
   return frame;
 }
 

@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <exception>
+#include <functional>
 #include <mutex>
 #include <thread>
 
@@ -59,6 +60,72 @@ void WriteKittiCalib(const fs::path& path, const CameraIntrinsics& camera) {
   });
 }
 
+namespace {
+
+// Frame i's files: image_0/NNNNNN.png, and depth_0 / mapped when the options ask for them.
+void WriteFrameFiles(const fs::path& out_dir, const World& world, const CameraIntrinsics& camera,
+                     const Trajectory& gt, const SequenceOptions& options,
+                     const RenderOptions& render, double scale, int64_t i) {
+  const Photometric photometric =
+      options.photometric_drift ? PhotometricForFrame(i, options.photometric) : Photometric{};
+  RenderedFrame frame = RenderFrame(world, camera, gt.poses[i].world_from_cam, render, photometric,
+                                    static_cast<uint64_t>(i));
+  const std::string stem = fmt::format("{:06d}", i);
+  cv::Mat img(frame.image.height, frame.image.width, CV_8UC1, frame.image.pixels.data());
+  WritePng(out_dir / "image_0" / (stem + ".png"), img, options.png_compression);
+  if (options.write_depth) {
+    cv::Mat depth16(frame.depth.height, frame.depth.width, CV_16UC1);
+    for (int v = 0; v < depth16.rows; ++v)
+      for (int u = 0; u < depth16.cols; ++u)
+        depth16.at<uint16_t>(v, u) = static_cast<uint16_t>(
+            std::clamp(std::lround(frame.depth.at(u, v) * 256.0), 0L, 65535L));
+    WritePng(out_dir / "depth_0" / (stem + ".png"), depth16, options.png_compression);
+  }
+  if (options.write_mapped) {
+    const auto pixels = SelectMappedPixels(frame.image, frame.depth, scale, options.mapped);
+    WriteFileAtomically(out_dir / "mapped" / (stem + ".txt"), [&](std::ostream& out) {
+      out << "# u v depth_raw\n";
+      for (const auto& p : pixels) out << fmt::format("{:.1f} {:.1f} {:.6g}\n", p.u, p.v, p.depth);
+    });
+  }
+}
+
+// Runs render_frame(i) for i in [0, total) on num_threads threads (the caller's included); the
+// first exception stops the others and is rethrown. Returns the frames done.
+int64_t ForEachFrameInParallel(int64_t total, int num_threads,
+                               const std::function<void(int64_t)>& render_frame,
+                               const std::function<void(int64_t, int64_t)>& progress) {
+  std::atomic<int64_t> next{0};
+  std::atomic<int64_t> done{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  std::mutex mutex;
+  auto worker = [&]() {
+    try {
+      for (int64_t i = next++; i < total && !failed; i = next++) {
+        render_frame(i);
+        const int64_t d = ++done;
+        if (progress) {
+          std::lock_guard<std::mutex> lock(mutex);
+          progress(d, total);
+        }
+      }
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!error) error = std::current_exception();
+      failed = true;
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 1; t < num_threads; ++t) threads.emplace_back(worker);
+  worker();
+  for (auto& t : threads) t.join();
+  if (error) std::rethrow_exception(error);
+  return done;
+}
+
+}  // namespace
+
 SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
                                   const CameraIntrinsics& camera, const Trajectory& gt,
                                   const SequenceOptions& options,
@@ -102,58 +169,12 @@ SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
   });
   WriteKittiCalib(out_dir / "calib.txt", camera);
 
-  const int64_t total = static_cast<int64_t>(gt.size());
-  std::atomic<int64_t> next{0};
-  std::atomic<int64_t> done{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex mutex;
   RenderOptions render = options.render;
   render.num_threads = 1;
-  auto worker = [&]() {
-    try {
-      for (int64_t i = next++; i < total && !failed; i = next++) {
-        const Photometric photometric =
-            options.photometric_drift ? PhotometricForFrame(i, options.photometric) : Photometric{};
-        RenderedFrame frame = RenderFrame(world, camera, gt.poses[i].world_from_cam, render,
-                                          photometric, static_cast<uint64_t>(i));
-        const std::string stem = fmt::format("{:06d}", i);
-        cv::Mat img(frame.image.height, frame.image.width, CV_8UC1, frame.image.pixels.data());
-        WritePng(out_dir / "image_0" / (stem + ".png"), img, options.png_compression);
-        if (options.write_depth) {
-          cv::Mat depth16(frame.depth.height, frame.depth.width, CV_16UC1);
-          for (int v = 0; v < depth16.rows; ++v)
-            for (int u = 0; u < depth16.cols; ++u)
-              depth16.at<uint16_t>(v, u) = static_cast<uint16_t>(
-                  std::clamp(std::lround(frame.depth.at(u, v) * 256.0), 0L, 65535L));
-          WritePng(out_dir / "depth_0" / (stem + ".png"), depth16, options.png_compression);
-        }
-        if (options.write_mapped) {
-          const auto pixels =
-              SelectMappedPixels(frame.image, frame.depth, scale[i], options.mapped);
-          WriteFileAtomically(out_dir / "mapped" / (stem + ".txt"), [&](std::ostream& out) {
-            out << "# u v depth_raw\n";
-            for (const auto& p : pixels)
-              out << fmt::format("{:.1f} {:.1f} {:.6g}\n", p.u, p.v, p.depth);
-          });
-        }
-        const int64_t d = ++done;
-        if (progress) {
-          std::lock_guard<std::mutex> lock(mutex);
-          progress(d, total);
-        }
-      }
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (!error) error = std::current_exception();
-      failed = true;
-    }
-  };
-  std::vector<std::thread> threads;
-  for (int t = 1; t < options.num_threads; ++t) threads.emplace_back(worker);
-  worker();
-  for (auto& t : threads) t.join();
-  if (error) std::rethrow_exception(error);
+  const int64_t done = ForEachFrameInParallel(
+      static_cast<int64_t>(gt.size()), options.num_threads,
+      [&](int64_t i) { WriteFrameFiles(out_dir, world, camera, gt, options, render, scale[i], i); },
+      progress);
 
   SequenceResult result;
   result.frames = done;

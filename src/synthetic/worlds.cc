@@ -144,8 +144,8 @@ std::vector<Eigen::Vector2d> DensePath(const FlightPlanOptions& o) {
 Trajectory MakeFlightTrajectory(const FlightPlanOptions& o) {
   o.Check();
   const std::vector<Eigen::Vector2d> dense = DensePath(o);
-  std::vector<double> cum(dense.size(), 0.0);
-  for (size_t i = 1; i < dense.size(); ++i) cum[i] = cum[i - 1] + (dense[i] - dense[i - 1]).norm();
+  const std::vector<double> cum =
+      CumulativePathLength(dense, [](const Eigen::Vector2d& p) { return p; });
   const double total = cum.back();
   std::vector<Eigen::Vector2d> xy(o.frames);
   size_t j = 0;
@@ -267,6 +267,83 @@ double PointSegmentDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
   return (p - (a + t * ab)).norm();
 }
 
+// Indices where the trajectory is cut into street segments of about segment_length of path
+// (first and last pose included).
+std::vector<size_t> SegmentCuts(const std::vector<Eigen::Vector3d>& positions,
+                                double segment_length) {
+  std::vector<size_t> cuts = {0};
+  double acc = 0.0;
+  for (size_t i = 1; i < positions.size(); ++i) {
+    acc += (positions[i] - positions[i - 1]).norm();
+    if (acc >= segment_length) {
+      cuts.push_back(i);
+      acc = 0.0;
+    }
+  }
+  if (cuts.back() != positions.size() - 1) cuts.push_back(positions.size() - 1);
+  return cuts;
+}
+
+// Trajectory positions by grid cell, for the road clearance test: does a segment pass closer
+// than `clearance` to any pose?
+class PoseProximity {
+ public:
+  PoseProximity(const std::vector<Eigen::Vector3d>& positions, double clearance)
+      : positions_(positions), clearance_(clearance), cell_(std::max(clearance, 1.0)) {
+    for (size_t i = 0; i < positions.size(); ++i) cells_[CellOf(positions[i], cell_)].push_back(i);
+  }
+  bool NearSegment(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const {
+    const CellKey ka = CellOf(a.cwiseMin(b), cell_), kb = CellOf(a.cwiseMax(b), cell_);
+    for (int64_t x = ka.x - 1; x <= kb.x + 1; ++x)
+      for (int64_t y = ka.y - 1; y <= kb.y + 1; ++y)
+        for (int64_t z = ka.z - 1; z <= kb.z + 1; ++z) {
+          auto it = cells_.find({x, y, z});
+          if (it == cells_.end()) continue;
+          for (size_t i : it->second)
+            if (PointSegmentDistance(positions_[i], a, b) < clearance_) return true;
+        }
+    return false;
+  }
+
+ private:
+  const std::vector<Eigen::Vector3d>& positions_;
+  double clearance_, cell_;
+  std::unordered_map<CellKey, std::vector<size_t>, CellHash> cells_;
+};
+
+// A facade's material and height, drawn from the seed of its grid cell (the same facade on a
+// revisit).
+Material FacadeMaterial(const StreetWorldOptions& o, const Eigen::Vector3d& centre,
+                        size_t num_textures, double* height) {
+  const CellKey cell = CellOf(centre, o.facade_cell);
+  SplitMix64 rng(HashCombine(o.seed, cell.x, cell.y, cell.z));
+  *height = rng.Uniform(o.min_facade_height, o.max_facade_height);
+  Material m;
+  m.kind = Material::Kind::kTexture;
+  m.texture = static_cast<int>(rng.Next() % num_textures);
+  m.texels_per_metre = o.facade_texels_per_metre * rng.Uniform(0.75, 1.3);
+  m.offset_texels = {rng.Uniform() * 4096.0, rng.Uniform() * 4096.0};
+  m.gain = static_cast<float>(rng.Uniform(0.75, 1.15));
+  return m;
+}
+
+// Fallback ground plane, seen only through gaps between strips: below the LOWEST road point so
+// that it can never hang above a camera on a hilly trajectory.
+Quad FallbackGround(const std::vector<Eigen::Vector3d>& positions, const StreetWorldOptions& o,
+                    const Eigen::Vector3d& tex_u, const Eigen::Vector3d& tex_v) {
+  double lowest = -std::numeric_limits<double>::infinity();
+  for (const auto& p : positions) lowest = std::max(lowest, p.dot(o.down));
+  Quad plane;
+  plane.infinite = true;
+  plane.axis_u = tex_u;
+  plane.axis_v = tex_v;
+  plane.origin = (lowest + o.camera_height + 0.5) * o.down;
+  plane.material = 0;
+  plane.tex_u = tex_u;
+  plane.tex_v = tex_v;
+  return plane;
+}
+
 }  // namespace
 
 World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const TextureSet> textures,
@@ -293,34 +370,8 @@ World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const Textur
 
   const std::vector<Eigen::Vector3d> positions = trajectory.Positions();
   // Segment boundaries by path length.
-  std::vector<size_t> cuts = {0};
-  double acc = 0.0;
-  for (size_t i = 1; i < positions.size(); ++i) {
-    acc += (positions[i] - positions[i - 1]).norm();
-    if (acc >= o.segment_length) {
-      cuts.push_back(i);
-      acc = 0.0;
-    }
-  }
-  if (cuts.back() != positions.size() - 1) cuts.push_back(positions.size() - 1);
-
-  // Trajectory positions by grid cell for the road clearance test.
-  const double pcell = std::max(o.road_clearance, 1.0);
-  std::unordered_map<CellKey, std::vector<size_t>, CellHash> pose_cells;
-  for (size_t i = 0; i < positions.size(); ++i)
-    pose_cells[CellOf(positions[i], pcell)].push_back(i);
-  auto near_any_pose = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    const CellKey ka = CellOf(a.cwiseMin(b), pcell), kb = CellOf(a.cwiseMax(b), pcell);
-    for (int64_t x = ka.x - 1; x <= kb.x + 1; ++x)
-      for (int64_t y = ka.y - 1; y <= kb.y + 1; ++y)
-        for (int64_t z = ka.z - 1; z <= kb.z + 1; ++z) {
-          auto it = pose_cells.find({x, y, z});
-          if (it == pose_cells.end()) continue;
-          for (size_t i : it->second)
-            if (PointSegmentDistance(positions[i], a, b) < o.road_clearance) return true;
-        }
-    return false;
-  };
+  const std::vector<size_t> cuts = SegmentCuts(positions, o.segment_length);
+  const PoseProximity poses(positions, o.road_clearance);
 
   SegmentIndex ground_index(20.0), facade_index(20.0);
   size_t merged = 0, cleared = 0;
@@ -361,20 +412,12 @@ World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const Textur
         continue;
       }
       facade_index.Add(c, u, 0.5 * L);
-      if (near_any_pose(A + offset, B + offset)) {
+      if (poses.NearSegment(A + offset, B + offset)) {
         ++cleared;
         continue;
       }
-      const CellKey cell = CellOf(c, o.facade_cell);
-      SplitMix64 rng(HashCombine(o.seed, cell.x, cell.y, cell.z));
-      const double height = rng.Uniform(o.min_facade_height, o.max_facade_height);
-      Material m;
-      m.kind = Material::Kind::kTexture;
-      m.texture = static_cast<int>(rng.Next() % num_textures);
-      m.texels_per_metre = o.facade_texels_per_metre * rng.Uniform(0.75, 1.3);
-      m.offset_texels = {rng.Uniform() * 4096.0, rng.Uniform() * 4096.0};
-      m.gain = static_cast<float>(rng.Uniform(0.75, 1.15));
-      world.materials.push_back(m);
+      double height = 0.0;
+      world.materials.push_back(FacadeMaterial(o, c, num_textures, &height));
       Quad q;
       q.axis_u = u;
       q.axis_v = v;
@@ -388,19 +431,7 @@ World MakeStreetWorld(const Trajectory& trajectory, std::shared_ptr<const Textur
       world.quads.push_back(q);
     }
   }
-  // Fallback ground plane, seen only through gaps between strips: below the LOWEST road point so
-  // that it can never hang above a camera on a hilly trajectory.
-  double lowest = -std::numeric_limits<double>::infinity();
-  for (const auto& p : positions) lowest = std::max(lowest, p.dot(down));
-  Quad plane;
-  plane.infinite = true;
-  plane.axis_u = tex_u;
-  plane.axis_v = tex_v;
-  plane.origin = (lowest + o.camera_height + 0.5) * down;
-  plane.material = 0;
-  plane.tex_u = tex_u;
-  plane.tex_v = tex_v;
-  world.quads.push_back(plane);
+  world.quads.push_back(FallbackGround(positions, o, tex_u, tex_v));
   world.sky.up = -down;
   Logger().info(
       "street world: {} quads ({} segments, {} facades merged on revisits, {} removed "

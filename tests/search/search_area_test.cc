@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include "search/search_oracle.h"
+#include "sparseloop/core/trajectory.h"
 #include "test_util.h"
 
 namespace sparseloop {
@@ -167,6 +168,22 @@ TEST(SearchAreaDrift, MarginGrowsWithPathAndResetsOnLoop) {
   r = area.Query(20);
   EXPECT_DOUBLE_EQ(r.distance_since_loop, 5.0);
   EXPECT_EQ(r.candidates, Range(19, 19));  // within 0.5 + 0.5
+}
+
+// The online path length equals the trajectory's (Trajectory::CumulativeDistances, the one
+// definition) at every stored keyframe; unknown ids are refused.
+TEST(SearchAreaPath, PathLengthEqualsTheTrajectorysCumulativeDistance) {
+  const std::vector<Eigen::Vector3d> pts = SquareThenDown();
+  const SearchArea area = Build(SearchAreaOptions{}, pts);
+  Trajectory traj;
+  for (size_t k = 0; k < pts.size(); ++k) {
+    traj.poses.push_back({double(k), int64_t(k), Rigid3d(Eigen::Quaterniond::Identity(), pts[k])});
+  }
+  const std::vector<double> expected = traj.CumulativeDistances();
+  for (size_t k = 0; k < pts.size(); ++k)
+    EXPECT_DOUBLE_EQ(area.PathLength(static_cast<int64_t>(k)), expected[k]) << k;
+  EXPECT_DOUBLE_EQ(area.PathLength(35), 10.0 + 10.0 + 8.0 + 7.0);
+  EXPECT_THROW(area.PathLength(36), std::invalid_argument);
 }
 
 TEST(SearchAreaPaper, TooShortAndNoMotion) {

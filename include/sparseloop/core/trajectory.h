@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <optional>
 #include <string>
 #include <vector>
@@ -10,6 +11,17 @@
 #include "sparseloop/core/rigid3.h"
 
 namespace sparseloop {
+
+// The one cumulative path length: entry i is the sum of |p_k - p_(k-1)| for 0 < k <= i (entry 0
+// is 0), p_k = position_of(elements[k]) (any Eigen vector). Trajectory::CumulativeDistances, the
+// KITTI metric and the flight planner use it; SearchArea keeps the same sum incrementally.
+template <typename Range, typename PositionOf>
+std::vector<double> CumulativePathLength(const Range& elements, PositionOf position_of) {
+  std::vector<double> out(std::size(elements), 0.0);
+  for (size_t i = 1; i < out.size(); ++i)
+    out[i] = out[i - 1] + (position_of(elements[i]) - position_of(elements[i - 1])).norm();
+  return out;
+}
 
 struct StampedPose {
   double timestamp = 0.0;  // seconds; for index-only formats, equal to `frame`

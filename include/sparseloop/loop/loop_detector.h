@@ -178,7 +178,9 @@ class LoopDetector {
     int small_k_floor = 8;
     // A candidate must be "far along the path": path length between it and the query >=
     // min_path_ratio * straight-line distance (scale-free; rejects the recent, still-overlapping
-    // stretch of a forward motion). Needs poses; 0 disables. ratio >= 0.
+    // stretch of a forward motion). Path length: SearchArea::PathLength over the stored
+    // positions; across keyframes without a pose it counts the chord between the posed ones
+    // around them. Needs poses; 0 disables. ratio >= 0.
     double min_path_ratio = 3.0;
     // Without a pose (global search), "far along the path" cannot be measured: a keyframe that
     // still shares the scene with the query is not a loop (kitti07_first160, a straight drive:
@@ -341,8 +343,41 @@ class LoopDetector {
   LoopResult Relocalize(const KeyframeInput& input);
 
  private:
+  // The steps of Process.
+  // Checks the input (id, timestamp, image, pose) without changing any state; true when the
+  // keyframe has no pose under a geometric search (relocalisation).
+  bool ValidateInput(const KeyframeInput& input) const;
+  // Stores the packed record (and its place on the trajectory unless relocalising); its index.
+  size_t Store(PackedKeyframe record, bool relocalize);
+  // A keyframe without a pose: appearance against every stored keyframe with one.
+  void RelocalizeStored(const KeyframeRecord& query, LoopResult* result) const;
+  // The search area's candidates, "far along the path" (FarAlong), without the still-overlapping
+  // recent keyframes when there is no pose (overlap_gap), and voted (retrieval kAnn).
+  std::vector<int64_t> SearchCandidates(const KeyframeRecord& query, size_t index,
+                                        LoopResult* result);
+  // min_path_ratio: the path between stored record `ci` and the query >= ratio x their distance
+  // (true when it cannot be measured).
+  bool FarAlong(const KeyframeRecord& query, size_t ci) const;
+  // appearance_fallback: every eligible stored keyframe outside `in_area` is ranked and verified.
+  void AppearanceFallback(const KeyframeRecord& query, size_t index, std::vector<int64_t> in_area,
+                          LoopResult* result);
+  // search_prior_sessions: the keyframes of earlier sessions, by appearance.
+  void SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const;
+  // Matching and ranking of the candidates, then TryCandidate on the best max_verify until one
+  // is detected; the most informative outcome goes to *result.
   void SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
                        LoopResult* result);
+  // One ranked candidate: verification (and the local map), then the gates (rotation, weak
+  // pairs, continuity, temporal). Fills *trial; returns its status.
+  LoopStatus TryCandidate(const KeyframeRecord& query, size_t query_index, size_t match_index,
+                          const std::vector<DescriptorMatch>& matches, const VerifyOptions& verify,
+                          bool weak_enabled, std::optional<size_t>* support, LoopResult* trial);
+  // The pose-prior rotation gate of a verified pair (kDetected when it passes or cannot be
+  // checked); a planar alternative that agrees with the prior replaces the pose in *trial.
+  LoopStatus RotationGate(const KeyframeRecord& query, const KeyframeRecord& match,
+                          size_t query_index, size_t match_index,
+                          const std::vector<DescriptorMatch>& matches, const VerificationResult& v,
+                          bool from_local_map, LoopResult* trial) const;
   // retrieval == kAnn: indexes the keyframes that became eligible, then returns the
   // ann.max_candidates top-voted ids among `allowed` (the filtered search-area candidates).
   std::vector<int64_t> RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
@@ -394,7 +429,6 @@ class LoopDetector {
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
   SearchArea search_;
   std::vector<PackedKeyframe> records_;  // the stored keyframes, packed (one allocation each)
-  std::vector<double> path_length_;      // cumulative path length at each keyframe (pose units)
   std::unordered_map<int64_t, size_t> index_of_;
   // The index below which keyframes no longer share the scene with the query (Options::
   // overlap_gap), for a query without a pose; `exclude_end` = first index excluded by
@@ -430,6 +464,7 @@ class LoopDetector {
   bool Agrees(size_t query_index, size_t match_index) const;
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
+  Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();  // of the last keyframe with a pose
   std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
   size_t ann_indexed_ = 0;             // records_[0, ann_indexed_) are in ann_
   // Earlier sessions (AddPriorKeyframes), searched by appearance only.

@@ -253,6 +253,13 @@ class PoseGraph {
   // the solve fields of *summary (costs, status, timings, rejected loops, loop checks).
   void SolveOnce(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
                  double loop_scale, const std::atomic<bool>* interrupt, PoseGraphSummary* summary);
+  // Steps of SolveOnce. The vertices chain reduction must keep (the fixed one, the ends of the
+  // used loops).
+  std::vector<bool> VerticesToKeep(const std::vector<bool>& use_loop) const;
+  // After a solve: poses from the normalised parameters; each loop rejected (not used, or its
+  // switch below switch_reject_below) or checked against its covariance (CheckLoop).
+  void AdoptSolution(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
+                     const std::vector<double>& switches, PoseGraphSummary* summary);
   size_t Index(int64_t id) const;
   // 0.5 * sum of (robustified) squared residuals of every edge and every used loop at the current
   // estimates (Sim(3) residuals; used when the solved problem is the reduced one).

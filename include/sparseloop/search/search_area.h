@@ -149,6 +149,11 @@ class SearchArea {
   // Records an accepted loop: the drift distance restarts at `query_id`. Both ids must be stored.
   void OnLoopAccepted(int64_t query_id, int64_t match_id);
   size_t size() const;
+  // Path length along the stored keyframes from the first one to `keyframe_id` (sum of the
+  // distances between consecutive stored positions; world units). The one online path length:
+  // the search area's drift widening and the detector's min_path_ratio filter both read it.
+  // Unknown id: std::invalid_argument.
+  double PathLength(int64_t keyframe_id) const;
 
   const SearchAreaOptions& options() const;
   // The current motion plane (fitted or given).
