@@ -13,7 +13,9 @@
 //   castle_pairs[ranking][K]: descriptor matches and essential inliers (min_inliers 5) of the
 //     true loops 29-01, 29-02 and the false pairs 29-15, 20-05, K in {15, 50};
 //   euroc: both loop pairs, default options (global search), monocular and with stereo depths:
-//   status, method, inliers, rotation / direction (and metric translation) error.
+//   status, method, inliers, rotation / direction (and metric translation) error;
+//   euroc_pairs_by_k[ranking][K]: matches and essential inliers of the true pairs 1-0, 3-2 and
+//     the false pairs 2-0, 3-1, K in {15, 50, 100, 200, 300}.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +32,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "euroc_pairs.h"
+#include "real_data.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/matching/descriptor_matching.h"
 #include "sparseloop/matching/geometric_verification.h"
@@ -45,38 +48,8 @@ double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return Deg(std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)));
 }
 
-// ---- castle_p30_768 (Strecha format: K, 3 zeros, R = world_from_cam rotation, centre, w h).
-struct Frame {
-  cv::Mat image;
-  CameraIntrinsics intrinsics;
-  Rigid3d world_from_cam;
-};
-
-std::vector<Frame> LoadCastle(const fs::path& root) {
-  std::vector<Frame> frames;
-  for (int i = 1; i <= 29; ++i) {
-    char name[16];
-    std::snprintf(name, sizeof(name), "%04d.jpg", i);
-    std::ifstream in(root / "gt_dense_cameras" / (std::string(name) + ".camera"));
-    double v[26];
-    for (double& x : v) in >> x;
-    if (!in) throw std::runtime_error("cannot read castle camera " + std::string(name));
-    Frame f;
-    f.intrinsics.fx = v[0];
-    f.intrinsics.cx = v[2];
-    f.intrinsics.fy = v[4];
-    f.intrinsics.cy = v[5];
-    f.intrinsics.width = static_cast<int>(v[24]);
-    f.intrinsics.height = static_cast<int>(v[25]);
-    Eigen::Matrix3d r;
-    r << v[12], v[13], v[14], v[15], v[16], v[17], v[18], v[19], v[20];
-    f.world_from_cam = Rigid3d(Eigen::Quaterniond(r), Eigen::Vector3d(v[21], v[22], v[23]));
-    f.image = cv::imread((root / "images" / name).string(), cv::IMREAD_GRAYSCALE);
-    if (f.image.empty()) throw std::runtime_error("cannot read castle image " + std::string(name));
-    frames.push_back(std::move(f));
-  }
-  return frames;
-}
+// ---- castle_p30_768: views 0001..0029 with their exact poses (tests/support/real_data.h).
+using test::Frame;
 
 json CastleLoop(const std::vector<Frame>& frames) {
   LoopDetector detector(LoopDetector::Options{});
@@ -137,6 +110,39 @@ json CastlePairs(const std::vector<Frame>& frames) {
         row[key] = {{"matches", static_cast<int>(matches.size())},
                     {"inliers", v.inliers},
                     {"true_loop", q == 29 && (m == 1 || m == 2)}};
+      }
+      out[ToString(ranking)][std::to_string(k)] = row;
+    }
+  }
+  return out;
+}
+
+// ---- euroc_loop_pairs by K: descriptor matches and essential inliers (min_inliers 5) of the two
+// true pairs (1-0, 3-2) and two false ones (2-0, 3-1), left images, response / grid ranking.
+json EurocPairsByK(const fs::path& root) {
+  Frame f[4];
+  for (int i = 0; i < 4; ++i) {
+    f[i].image = test::EurocImage(root, "left", i);
+    f[i].intrinsics = test::EurocIntrinsics(0);
+  }
+  json out;
+  for (auto ranking : {FeatureRanking::kResponse, FeatureRanking::kGridResponse}) {
+    for (int k : {15, 50, 100, 200, 300}) {
+      FeatureOptions fo;
+      fo.ranking = ranking;
+      fo.max_features = k;
+      json row;
+      for (auto [q, m] : std::vector<std::pair<int, int>>{{1, 0}, {3, 2}, {2, 0}, {3, 1}}) {
+        const KeyframeRecord rq = Extract(f[q], fo);
+        const KeyframeRecord rm = Extract(f[m], fo);
+        const auto matches = MatchDescriptors(rq.descriptors, rm.descriptors, MatchOptions{});
+        VerifyOptions vo;
+        vo.min_inliers = 5;
+        const auto v = VerifyPair(rq, rm, matches, vo);
+        row[std::to_string(q) + "-" + std::to_string(m)] = {
+            {"matches", static_cast<int>(matches.size())},
+            {"inliers", v.inliers},
+            {"true_loop", q - m == 1}};
       }
       out[ToString(ranking)][std::to_string(k)] = row;
     }
@@ -221,7 +227,8 @@ json Rtabmap(const fs::path& root, bool quick) {
   return out;
 }
 
-// ---- euroc_loop_pairs (tests/loop/euroc_pairs.h): monocular, and with the stereo-mapped depths.
+// ---- euroc_loop_pairs (tests/support/euroc_pairs.h): monocular, and with the stereo-mapped
+// depths.
 json Euroc(const fs::path& root) {
   json out = json::array();
   for (const bool stereo : {false, true}) {
@@ -244,8 +251,7 @@ json Euroc(const fs::path& root) {
 }
 
 int Main(int argc, char** argv) {
-  fs::path data = std::getenv("SPARSELOOP_DATA") ? fs::path(std::getenv("SPARSELOOP_DATA"))
-                                                 : fs::path(SPARSELOOP_DATA_DIR);
+  fs::path data = test::DataDir();
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -273,10 +279,11 @@ int Main(int argc, char** argv) {
   cv::setNumThreads(1);
   json out;
   out["data"] = data.string();
-  const auto castle = LoadCastle(data / "castle_p30_768");
+  const auto castle = test::LoadCastle(/*transpose=*/false, data / "castle_p30_768");
   out["castle"] = CastleLoop(castle);
   out["castle_pairs"] = CastlePairs(castle);
   out["euroc"] = Euroc(data / "euroc_loop_pairs");
+  out["euroc_pairs_by_k"] = EurocPairsByK(data / "euroc_loop_pairs");
   out["rtabmap"] = Rtabmap(data / "rtabmap_corridor_loop", quick);
   std::cout << out.dump(1) << "\n";
   return 0;

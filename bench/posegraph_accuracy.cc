@@ -7,7 +7,7 @@
 // SPARSELOOP_DATA_DIR, i.e. ../shared/data next to the repository). Exit code 2 with a message on
 // stderr when the data is absent or an argument is wrong.
 //
-// Reports, for each real-drift case of tests/posegraph/loop_harness.h (KITTI 09 monocular VO,
+// Reports, for each real-drift case of tests/support/loop_harness.h (KITTI 09 monocular VO,
 // four EuRoC monocular VIO runs; loops from GT as a monocular vSLAM would measure them):
 // raw ATE, corrected ATE with true loops, with 20 % false loops (default robust solve) and the
 // same with plain least squares, loop counts and solve time; the true loops also on SE(3) and
@@ -26,6 +26,7 @@
 
 #include <fmt/format.h>
 
+#include "data_dir.h"
 #include "loop_harness.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/eval/metrics.h"
@@ -164,8 +165,7 @@ int Main(int argc, char** argv) {
     }
     return Oracle(argv[2], argv[3], revisit, gap);
   }
-  std::filesystem::path data = SPARSELOOP_DATA_DIR;
-  if (const char* env = std::getenv("SPARSELOOP_DATA")) data = env;
+  std::filesystem::path data = test::DataDir();
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--data" && i + 1 < argc) {

@@ -20,13 +20,15 @@ function(sparseloop_add_module)
 endfunction()
 
 # sparseloop_add_test(NAME <t> SOURCES <...> LIBS <...> [LABELS <...>])
-# A GoogleTest binary; each TEST becomes a ctest test (discovered before the test runs, so the
+# A GoogleTest binary (includes: tests/, tests/support/ (fixtures shared with bench/), src/);
+# each TEST becomes a ctest test (discovered before the test runs, so the
 # build never executes test code). The test sees SPARSELOOP_DATA_DIR and SPARSELOOP_SOURCE_DIR.
 function(sparseloop_add_test)
   cmake_parse_arguments(ARG "" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SOURCES})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LIBS} sparseloop_test_main)
-  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests ${PROJECT_SOURCE_DIR}/src)
+  target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests
+    ${PROJECT_SOURCE_DIR}/tests/support ${PROJECT_SOURCE_DIR}/src)
   if(NOT ARG_LABELS)
     set(ARG_LABELS unit)
   endif()

@@ -1179,7 +1179,7 @@ def real_sets_md(da):
                  e.get("translation_error_m", "")] for e in eu]
         text += ("\neuroc_loop_pairs (two images each, global search; target: both verified, "
                  "rotation < 3 deg). `stereo`: the keyframes carry the left image's ORB corners "
-                 "with StereoSGBM depths, what a stereo vSLAM hands over (tests/loop/"
+                 "with StereoSGBM depths, what a stereo vSLAM hands over (tests/support/"
                  "euroc_pairs.h); `none`: monocular, where pair 2-3 is near-planar: its "
                  "lowest-cost essential model is ~21 deg off, the pose-prior check rejects it "
                  "and takes a homography decomposition instead (`planar`; docs/DETECTOR.md, "

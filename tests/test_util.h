@@ -7,13 +7,9 @@
 
 #include <gtest/gtest.h>
 
-namespace sparseloop::test {
+#include "data_dir.h"  // tests/support: DataDir()
 
-// ../shared/data, or $SPARSELOOP_DATA when set.
-inline std::filesystem::path DataDir() {
-  if (const char* env = std::getenv("SPARSELOOP_DATA")) return env;
-  return SPARSELOOP_DATA_DIR;
-}
+namespace sparseloop::test {
 
 inline bool InCi() {
   const char* ci = std::getenv("CI");

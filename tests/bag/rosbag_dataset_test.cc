@@ -15,7 +15,7 @@
 
 #include "bag/bag_writer.h"
 #include "cli/cli_runner.h"
-#include "loop/real_data.h"
+#include "real_data.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/dataset_source.h"

@@ -18,7 +18,7 @@ namespace sparseloop::test {
 namespace {
 
 // Strecha .camera: K (3x3), 3 zeros, R (3x3), camera centre (3), width height;
-// world_from_cam = [R | c] (tests/loop/real_data.h checks this against the images).
+// world_from_cam = [R | c] (tests/support/real_data.h checks this against the images).
 Rigid3d ReadCastlePose(const std::filesystem::path& file, double k[4]) {
   std::ifstream in(file);
   double v[26];

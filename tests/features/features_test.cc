@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "cameras.h"
 #include "sparseloop/features/informative_features.h"
 #include "sparseloop/synthetic/worlds.h"
 #include "test_util.h"
@@ -147,15 +148,7 @@ cv::Mat TexturedImage(uint64_t seed) {
   return img;
 }
 
-CameraIntrinsics SmallCamera() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 300;
-  k.cx = 160;
-  k.cy = 120;
-  k.width = 320;
-  k.height = 240;
-  return k;
-}
+using test::SmallCamera;
 
 TEST(Features, ExtractKeepsAtMostKAndIsDeterministic) {
   const cv::Mat img = TexturedImage(3);

@@ -8,6 +8,9 @@
 #include "euroc_pairs.h"
 #include "real_data.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/matching/descriptor_matching.h"
+#include "sparseloop/matching/geometric_verification.h"
+#include "test_util.h"
 
 namespace sparseloop {
 namespace {
@@ -81,6 +84,34 @@ TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
 // one does not (a 0.8 m baseline to 29 -> 01 against a facade 10-20 m away; the Huber-Sampson
 // optimum of its K = 300 inliers is itself 18 deg from the GT). Kept as the measured baseline of
 // what the local map buys.
+// The observation behind small K (issue #3): with 50 response-ranked features per view the true
+// loop 29-01 has clearly more essential-matrix inliers than the false pairs 29-15 and 20-05
+// (about 23 vs <= 8; every ranking and K: bench/detector_accuracy, castle_pairs).
+TEST(LoopDetectorReal, CastleTrueLoopOutscoresFalsePairsAtK50) {
+  SL_REQUIRE_DATA("castle_p30_768");
+  const std::vector<test::Frame> frames = test::LoadCastle();
+  FeatureOptions fo;
+  fo.ranking = FeatureRanking::kResponse;
+  fo.max_features = 50;
+  const auto inliers = [&](int q, int m) {  // view numbers; frames[i] is view i + 1
+    KeyframeRecord rq, rm;
+    for (auto [view, record] : {std::pair{q, &rq}, std::pair{m, &rm}}) {
+      FeatureInput in;
+      in.image = &frames[view - 1].image;
+      in.intrinsics = &frames[view - 1].intrinsics;
+      ExtractInformativeFeatures(in, fo, record);
+    }
+    VerifyOptions vo;
+    vo.min_inliers = 5;
+    return VerifyPair(rq, rm, MatchDescriptors(rq.descriptors, rm.descriptors, MatchOptions{}), vo)
+        .inliers;
+  };
+  const int true_loop = inliers(29, 1);
+  const int false_pairs = std::max(inliers(29, 15), inliers(20, 5));
+  EXPECT_GE(true_loop, 15);
+  EXPECT_GT(true_loop, 2 * false_pairs) << true_loop << " vs " << false_pairs;
+}
+
 TEST(LoopDetectorReal, CastleTwoViewOnlyRotationAccurateDirectionNot) {
   SL_REQUIRE_DATA("castle_p30_768");
   LoopDetector::Options o;
@@ -176,7 +207,7 @@ TEST_F(KittiNoLoop, NearTimeLoopsWithoutPosesAreExcluded) {
   EXPECT_EQ(CountLoops({}), 0);
 }
 
-// EuRoC pairs: tests/loop/euroc_pairs.h (shared with bench/detector_accuracy).
+// EuRoC pairs: tests/support/euroc_pairs.h (shared with bench/detector_accuracy).
 test::EurocPairResult RunEurocPair(int pair, bool stereo = false) {
   const test::EurocPairResult r =
       test::RunEurocPair(test::DataDir() / "euroc_loop_pairs", pair, stereo);

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "cameras.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "test_util.h"
 
@@ -19,15 +20,7 @@ cv::Mat Textured(uint64_t seed) {
   return img;
 }
 
-CameraIntrinsics Camera() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 300;
-  k.cx = 160;
-  k.cy = 120;
-  k.width = 320;
-  k.height = 240;
-  return k;
-}
+CameraIntrinsics Camera() { return test::SmallCamera(); }
 
 LoopDetector::Options GlobalNoExclusion() {
   LoopDetector::Options o;

@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include "cameras.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/map/map_database.h"
 #include "sparseloop/pipeline/map_records.h"
@@ -25,15 +26,7 @@ namespace {
 
 using synthetic::FlightPlanOptions;
 
-CameraIntrinsics SmallCamera() {
-  CameraIntrinsics c;
-  c.fx = c.fy = 250.0;
-  c.cx = 159.5;
-  c.cy = 119.5;
-  c.width = 320;
-  c.height = 240;
-  return c;
-}
+CameraIntrinsics SmallCamera() { return test::PinholeCamera(250.0, 320, 240, 159.5, 119.5); }
 
 // The camera footprint on the ground at 40 m is about 51 x 38 m; a cross-session pair is a true
 // revisit when the two cameras are closer than this (metres).

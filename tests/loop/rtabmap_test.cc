@@ -8,6 +8,7 @@
 
 #include "real_data.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "test_util.h"
 
 namespace sparseloop {
 namespace {

@@ -12,7 +12,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "loop/real_data.h"
+#include "real_data.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/pipeline/pipeline.h"
 #include "test_util.h"
@@ -25,7 +25,7 @@ struct Castle {
   Trajectory gt;
 };
 
-// The 30 views with their exact poses (tests/loop/real_data.h reads the Strecha cameras).
+// The 30 views with their exact poses (tests/support/real_data.h reads the Strecha cameras).
 Castle LoadCastleDataset() {
   Castle c;
   const auto root = test::DataDir() / "castle_p30_768";

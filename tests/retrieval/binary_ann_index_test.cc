@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "cameras.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "test_util.h"
 
@@ -265,15 +266,7 @@ cv::Mat Moved(const cv::Mat& a, double angle_deg, double dx, double dy) {
   return out;
 }
 
-CameraIntrinsics Camera() {
-  CameraIntrinsics k;
-  k.fx = k.fy = 300;
-  k.cx = 160;
-  k.cy = 120;
-  k.width = 320;
-  k.height = 240;
-  return k;
-}
+CameraIntrinsics Camera() { return test::SmallCamera(); }
 
 std::vector<Descriptor> Orb1000(const cv::Mat& image) {
   FeatureOptions o;

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "cameras.h"
 #include "io/io_test_util.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/dataset.h"
@@ -43,13 +44,7 @@ cv::Mat TexturedImage(uint64_t seed) {
 }
 
 CameraIntrinsics Camera() {
-  CameraIntrinsics c;
-  c.fx = c.fy = 500;
-  c.cx = kWidth / 2.0;
-  c.cy = kHeight / 2.0;
-  c.width = kWidth;
-  c.height = kHeight;
-  return c;
+  return test::PinholeCamera(500.0, kWidth, kHeight, kWidth / 2.0, kHeight / 2.0);
 }
 
 KeyframeInput ValidInput(int64_t id) {

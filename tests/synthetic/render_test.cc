@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include "cameras.h"
 #include "sparseloop/synthetic/renderer.h"
 #include "sparseloop/synthetic/worlds.h"
 #include "test_util.h"
@@ -17,15 +18,7 @@ std::shared_ptr<const TextureSet> SmallTextures() {
   return MakeProceduralTextures(o);
 }
 
-CameraIntrinsics SmallCamera() {
-  CameraIntrinsics c;
-  c.fx = c.fy = 200.0;
-  c.cx = 79.5;
-  c.cy = 59.5;
-  c.width = 160;
-  c.height = 120;
-  return c;
-}
+CameraIntrinsics SmallCamera() { return test::PinholeCamera(200.0, 160, 120, 79.5, 59.5); }
 
 // Nadir camera at (x, y, altitude), heading `yaw` (rad) about world z.
 Rigid3d NadirPose(double x, double y, double altitude, double yaw) {

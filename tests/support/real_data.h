@@ -1,18 +1,20 @@
 #pragma once
-// Small real-data readers for the detector tests (kept in the tests: the library's io module owns
-// the general dataset readers).
+// Small real-data readers for the detector tests and the accuracy programs in bench/ (kept out of
+// the library: its io module owns the general dataset readers). Missing files throw
+// std::runtime_error naming them.
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "data_dir.h"
 #include "sparseloop/core/camera.h"
 #include "sparseloop/core/sim3.h"
 #include "sparseloop/synthetic/worlds.h"
-#include "test_util.h"
 
 namespace sparseloop::test {
 
@@ -30,6 +32,7 @@ inline Frame ReadStrechaCamera(const std::filesystem::path& camera_file, bool tr
   std::ifstream in(camera_file);
   double v[26];
   for (double& x : v) in >> x;
+  if (!in) throw std::runtime_error("cannot read the Strecha camera " + camera_file.string());
   Frame f;
   f.intrinsics.fx = v[0];
   f.intrinsics.cx = v[2];
@@ -45,15 +48,18 @@ inline Frame ReadStrechaCamera(const std::filesystem::path& camera_file, bool tr
   return f;
 }
 
-inline std::vector<Frame> LoadCastle(bool transpose = false) {
+// Views 0001..0029 of castle_p30_768 (`root`; empty: DataDir()/castle_p30_768).
+inline std::vector<Frame> LoadCastle(bool transpose = false, std::filesystem::path root = {}) {
+  if (root.empty()) root = DataDir() / "castle_p30_768";
   std::vector<Frame> frames;
-  const auto root = DataDir() / "castle_p30_768";
   for (int i = 1; i <= 29; ++i) {
     char name[16];
     std::snprintf(name, sizeof(name), "%04d.jpg", i);
     Frame f =
         ReadStrechaCamera(root / "gt_dense_cameras" / (std::string(name) + ".camera"), transpose);
     f.image = cv::imread((root / "images" / name).string(), cv::IMREAD_GRAYSCALE);
+    if (f.image.empty())
+      throw std::runtime_error("cannot read the castle image " + std::string(name));
     frames.push_back(std::move(f));
   }
   return frames;
