@@ -1,0 +1,282 @@
+// LoopDetector: candidates matched, ranked and verified; the gates a verified pair passes
+// (pose-prior rotation, weak pairs, continuity, temporal) and the state they read; ANN voting.
+#include "sparseloop/loop/loop_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+
+#include "loop/candidate_ranking.h"
+
+namespace sparseloop {
+
+bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query_index,
+                                       size_t match_index, int inliers,
+                                       const VerifyOptions& verify) const {
+  const size_t span = query_index - match_index;
+  for (const size_t k : {match_index + span / 2, match_index + 3 * span / 4}) {
+    if (k <= match_index || k >= query_index) continue;
+    const std::vector<DescriptorMatch> matches = MatchQuery(query, records_[k]);
+    if (static_cast<int>(matches.size()) < inliers) continue;  // cannot reach `inliers`
+    const VerificationResult v = VerifyPair(query, Stored(k), matches, verify);
+    if (v.success && v.inliers >= inliers) return true;
+  }
+  return false;
+}
+
+size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
+  const double floor = options_.overlap_match_factor * options_.EffectiveMinMatches();
+  double threshold = floor;
+  size_t start = exclude_end;  // keyframes [start, query) are excluded
+  int misses = 0;
+  int walked = 0;
+  for (size_t k = exclude_end; k-- > 0 && walked < options_.overlap_max_walk; ++walked) {
+    const double matches = static_cast<double>(MatchQuery(query, records_[k]).size());
+    if (walked == 0) threshold = std::max(floor, options_.overlap_relative * matches);
+    if (matches >= threshold) {
+      start = k;
+      misses = 0;
+    } else if (++misses >= options_.overlap_gap) {
+      break;
+    }
+  }
+  return start;
+}
+
+bool LoopDetector::Agrees(size_t query_index, size_t match_index) const {
+  if (!last_support_ || last_support_->first >= query_index) return false;
+  const size_t dq = query_index - last_support_->first;
+  const size_t dm = match_index > last_support_->second ? match_index - last_support_->second
+                                                        : last_support_->second - match_index;
+  const size_t window = static_cast<size_t>(options_.agreement_window);
+  return dq <= window && dm <= window + dq;
+}
+
+LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
+                                                           size_t match_index) const {
+  auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
+  auto rotation = [&](size_t i) { return records_[i].world_from_cam().rotation; };
+  // a_from_b of the raw rotations.
+  auto raw = [&](size_t a, size_t b) { return rotation(a).conjugate() * rotation(b); };
+  GraphPrior best;
+  best.keyframes = dist(query_index, match_index);
+  best.match_from_query = raw(match_index, query_index);
+  for (const AcceptedLoop& l : accepted_loops_) {
+    if (!records_[l.query].has_pose() || !records_[l.match].has_pose()) continue;
+    // query ~ loop query, match ~ loop match; or the loop used the other way round.
+    const size_t forward = dist(query_index, l.query) + dist(l.match, match_index);
+    const size_t backward = dist(query_index, l.match) + dist(l.query, match_index);
+    if (forward < best.keyframes) {
+      best.keyframes = forward;
+      best.match_from_query =
+          raw(match_index, l.match) * l.match_from_query * raw(l.query, query_index);
+    }
+    if (backward < best.keyframes) {
+      best.keyframes = backward;
+      best.match_from_query =
+          raw(match_index, l.query) * l.match_from_query.conjugate() * raw(l.match, query_index);
+    }
+  }
+  return best;
+}
+
+std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
+                                                   const std::vector<int64_t>& allowed) {
+  // Keyframes the search area may return (index < query index - exclude_recent) enter the index;
+  // the recent ones stay out, else they would absorb every query descriptor's nearest neighbours.
+  const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+  const size_t eligible = query_index > exclude ? query_index - exclude : 0;
+  for (; ann_indexed_ < eligible; ++ann_indexed_)
+    ann_->Add(static_cast<int64_t>(ann_indexed_), records_[ann_indexed_].descriptors());
+  if (allowed.empty()) return {};
+  std::vector<int64_t> allowed_sorted = allowed;
+  std::sort(allowed_sorted.begin(), allowed_sorted.end());
+  std::vector<int64_t> out;
+  for (const KeyframeVotes& v : ann_->Query(query.descriptors)) {
+    const int64_t id = records_[static_cast<size_t>(v.keyframe_id)].id();
+    if (!std::binary_search(allowed_sorted.begin(), allowed_sorted.end(), id)) continue;
+    out.push_back(id);
+    if (static_cast<int>(out.size()) >= options_.ann.max_candidates) break;
+  }
+  return out;
+}
+
+LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
+                                      const std::vector<int64_t>& candidate_ids) {
+  Timer total;
+  unpacked_.clear();
+  LoopResult result;
+  result.query_id = query.id;
+  SearchAndVerify(query, candidate_ids, &result);
+  result.timings.total_ms = total.ElapsedMs();
+  return result;
+}
+
+LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const KeyframeRecord& match,
+                                      size_t query_index, size_t match_index,
+                                      const std::vector<DescriptorMatch>& matches,
+                                      const VerificationResult& v, bool from_local_map,
+                                      LoopResult* trial) const {
+  if (!query.has_pose || !match.has_pose || v.pose_kind == RelativePoseKind::kNone)
+    return LoopStatus::kDetected;
+  // A pose from 3D points (PnP / Sim(3) against the local map or depths) has no two-view
+  // ambiguity: the gate may be as wide as the odometry between the two places allows. A
+  // two-view pose can be the wrong one of two supported solutions (castle 29 -> 02: 27 deg
+  // off), so it keeps the narrow rate (docs/DETECTOR.md, "Rotation gate").
+  const bool from_3d =
+      v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3;
+  const GraphPrior graph_prior = PriorAlongLoopGraph(query_index, match_index);
+  const double tolerance_deg = std::min(
+      options_.consistency_max_deg,
+      options_.consistency_base_deg + (from_3d ? options_.consistency_per_keyframe_deg
+                                               : options_.two_view_consistency_per_keyframe_deg) *
+                                          static_cast<double>(graph_prior.keyframes));
+  auto error_deg = [&](const Sim3d& pose) {
+    return RotationAngle(graph_prior.match_from_query, pose.rotation) * 180.0 / M_PI;
+  };
+  trial->rotation_error_vs_prior_deg = error_deg(v.match_from_query);
+  if (!options_.check_consistency || trial->rotation_error_vs_prior_deg <= tolerance_deg)
+    return LoopStatus::kDetected;
+  if (!options_.planar_alternatives || from_local_map) return LoopStatus::kRejectedByConsistency;
+  for (const VerificationResult& alt : PlanarAlternatives(query, match, matches, v, verify_)) {
+    const double err = error_deg(alt.match_from_query);
+    if (err > options_.planar_alternative_tolerance * tolerance_deg) continue;
+    trial->rotation_error_vs_prior_deg = err;
+    trial->inliers = alt.inliers;
+    trial->score = static_cast<double>(alt.inliers) / options_.features.max_features;
+    trial->match_from_query = alt.match_from_query;
+    trial->information = alt.information;
+    trial->planar_alternative = true;
+    return LoopStatus::kDetected;
+  }
+  return LoopStatus::kRejectedByConsistency;
+}
+
+LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_index,
+                                      size_t match_index,
+                                      const std::vector<DescriptorMatch>& matches,
+                                      const VerifyOptions& verify, bool weak_enabled,
+                                      std::optional<size_t>* support, LoopResult* trial) {
+  const KeyframeRecord& match = Stored(match_index);
+  VerificationResult v = VerifyPair(query, match, matches, verify);
+  int map_points = 0, map_inliers = 0;
+  if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
+      options_.local_map.enabled && match.has_pose) {
+    VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
+    if (m.success) {
+      map_inliers = m.inliers;
+      v.method = m.method;
+      v.pose_kind = m.pose_kind;
+      v.match_from_query = m.match_from_query;
+      v.information = m.information;
+    }
+  }
+  trial->local_map_points = map_inliers > 0 ? map_points : 0;
+  trial->local_map_inliers = map_inliers;
+  trial->match_id = match.id;
+  trial->matches = static_cast<int>(matches.size());
+  trial->inliers = v.inliers;
+  trial->score = static_cast<double>(v.inliers) / options_.features.max_features;
+  trial->method = v.method;
+  trial->pose_kind = v.pose_kind;
+  trial->match_from_query = v.match_from_query;
+  trial->information = v.information;
+  if (!v.success) return LoopStatus::kTooFewInliers;
+  LoopStatus status =
+      RotationGate(query, match, query_index, match_index, matches, v, map_inliers > 0, trial);
+  if (status == LoopStatus::kDetected && weak_enabled) {
+    // Passed the gate: support for the next queries (committed after this query's loop).
+    if (!*support) *support = match_index;
+    const bool is_weak = trial->inliers < verify_.min_inliers && map_inliers == 0;
+    if (is_weak && !Agrees(query_index, match_index)) status = LoopStatus::kRejectedByTemporal;
+  }
+  if (status == LoopStatus::kDetected && options_.continuity_check && !query.has_pose &&
+      ContinuesRecentView(query, query_index, match_index, trial->inliers, verify)) {
+    status = LoopStatus::kRejectedByTemporal;
+  }
+  if (status == LoopStatus::kDetected && options_.temporal_check) {
+    const bool confirmed =
+        last_verified_ && std::llabs(static_cast<int64_t>(last_verified_->second) -
+                                     static_cast<int64_t>(match_index)) <= options_.temporal_window;
+    last_verified_ = std::make_pair(query_index, match_index);
+    if (!confirmed) status = LoopStatus::kRejectedByTemporal;
+  }
+  return status;
+}
+
+void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
+                                   LoopResult* result) {
+  result->candidates = static_cast<int>(candidates.size());
+  if (candidates.empty()) {
+    result->status = LoopStatus::kNoCandidates;
+    return;
+  }
+  // 4. Hamming matching against every candidate; rank by match count, then score, then id.
+  Timer stage;
+  const bool weak_enabled = options_.weak_pairs && options_.weak_min_inliers < verify_.min_inliers;
+  VerifyOptions verify = verify_;
+  if (weak_enabled) verify.min_inliers = options_.weak_min_inliers;
+  std::vector<size_t> record_index(candidates.size());
+  for (size_t e = 0; e < candidates.size(); ++e) record_index[e] = index_of_.at(candidates[e]);
+  const loop_internal::CandidateRanking ranking = loop_internal::RankCandidates(
+      candidates.size(),
+      [&](size_t e) -> const PackedKeyframe& { return records_[record_index[e]]; },
+      [&](size_t e) { return record_index[e]; },
+      [&](const PackedKeyframe& r) { return MatchQuery(query, r); },
+      weak_enabled ? std::min(options_.EffectiveMinMatches(), options_.weak_min_inliers)
+                   : options_.EffectiveMinMatches(),
+      options_.match.max_distance);
+  const auto& ranked = ranking.ranked;
+  result->timings.match_ms = stage.ElapsedMs();
+  if (ranked.empty()) {
+    result->status = LoopStatus::kTooFewMatches;
+    result->match_id = ranking.best_count > 0 ? candidates[ranking.best_entry] : -1;
+    result->matches = ranking.best_count;
+    return;
+  }
+
+  // 5. Geometric verification of the best few, then the pose-prior consistency check.
+  stage.Restart();
+  const size_t query_index = index_of_.at(query.id);
+  LoopStatus status = LoopStatus::kTooFewInliers;
+  bool have_best = false;
+  const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
+  std::optional<size_t> support;  // match index of this query's first gate-passing pair
+  // Keep the most informative outcome: detected > rejected > too few inliers (best inliers).
+  auto rank = [](LoopStatus s) {
+    return s == LoopStatus::kDetected                                                          ? 3
+           : (s == LoopStatus::kRejectedByConsistency || s == LoopStatus::kRejectedByTemporal) ? 2
+                                                                                               : 1;
+  };
+  for (int r = 0; r < n_verify; ++r) {
+    const auto& cand = ranked[r];
+    LoopResult trial = *result;
+    const LoopStatus trial_status =
+        TryCandidate(query, query_index, record_index[cand.entry], cand.matches, verify,
+                     weak_enabled, &support, &trial);
+    if (!have_best || rank(trial_status) > rank(status) ||
+        (rank(trial_status) == rank(status) && trial.inliers > result->inliers)) {
+      const StageTimings keep = result->timings;
+      *result = trial;
+      result->timings = keep;
+      status = trial_status;
+      have_best = true;
+    }
+    if (status == LoopStatus::kDetected) break;
+  }
+  if (support) last_support_ = std::make_pair(query_index, *support);
+  result->status = status;
+  result->timings.verify_ms = stage.ElapsedMs();
+  if (status == LoopStatus::kDetected) {
+    accepted_loops_.push_back(
+        {query_index, index_of_.at(result->match_id), result->match_from_query.rotation});
+    search_.OnLoopAccepted(query.id, result->match_id);
+  }
+}
+
+}  // namespace sparseloop

@@ -1,0 +1,158 @@
+// LoopDetector: verification against a local map triangulated around the match (PnP / Sim(3)),
+// and the relative scale of a PnP loop from the query's depths.
+#include "sparseloop/loop/loop_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
+#include "sparseloop/core/timer.h"
+
+namespace sparseloop {
+
+namespace {
+
+// PnP of the query against the match's local map fixes the query camera in match units; the
+// query's own triangulated depths (query units) of the same inliers then give the relative scale
+// directly: s = z(query_from_match * P) / z_query per inlier, robustly the median. A 3-point
+// Sim(3) RANSAC between two noisy triangulated clouds rarely passes the 2 px check in both
+// cameras (castle 29 -> 02 falls back to PnP), while this needs no 3D-3D hypothesis. The loop
+// becomes kSim3 with the scale's information n / var(log s_i) added to the PnP information.
+// Needs kMinScalePairs inliers with a query depth.
+constexpr int kMinScalePairs = 8;
+
+}  // namespace
+
+void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeRecord& map,
+                                 const std::vector<DescriptorMatch>& matches,
+                                 VerificationResult* v) const {
+  const Sim3d query_from_match = v->match_from_query.Inverse();
+  std::vector<double> log_ratio;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observed;
+  for (int i : v->inlier_matches) {
+    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
+    const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
+    const CompactKeypoint& kq = query.keypoints[static_cast<size_t>(m.query)];
+    const float zm = map.depths[static_cast<size_t>(m.train)];
+    const float zq = query.depths[static_cast<size_t>(m.query)];
+    points.push_back(double(zm) * Eigen::Vector3d(k.x, k.y, 1.0));
+    observed.emplace_back(kq.x, kq.y);
+    if (zq <= 0 || zm <= 0) continue;
+    const double z = (query_from_match * points.back()).z();
+    if (z > 0) log_ratio.push_back(std::log(z / zq));
+  }
+  if (static_cast<int>(log_ratio.size()) < kMinScalePairs) return;
+  std::vector<double> sorted = log_ratio;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  // Robust spread: 1.4826 x the median absolute deviation, floored (a few identical ratios).
+  std::vector<double> dev;
+  for (double r : log_ratio) dev.push_back(std::abs(r - median));
+  std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
+  const double sigma = std::max(1.4826 * dev[dev.size() / 2], 1e-3);
+  v->match_from_query.scale = std::exp(median);
+  // The PnP information again at the scaled pose (its translation columns scale with s).
+  const float focal = std::max(1.0f, 0.5f * (query.focal_px + map.focal_px));
+  v->information = PnpInformationPointsInMatch(points, observed, v->match_from_query,
+                                               verify_.InformationOptions(focal));
+  v->information(6, 6) += static_cast<double>(log_ratio.size()) / (sigma * sigma);
+  v->pose_kind = RelativePoseKind::kSim3;
+}
+
+VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
+                                                       size_t match_index, int* map_points) const {
+  const Options::LocalMapOptions& lm = options_.local_map;
+  const KeyframeRecord& match = Stored(match_index);
+  // Only keyframes well before the query: the map must not contain the query's own stretch.
+  const size_t query_index = index_of_.at(query.id);
+  const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
+  const size_t end = query_index > exclude ? query_index - exclude : 0;
+  auto usable = [&](int64_t i) {
+    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose();
+  };
+  // The map, in the match camera's frame: every window keyframe's triangulated keypoints as
+  // points (bearing + depth) of one virtual record, with their own descriptors.
+  KeyframeRecord map;
+  map.id = match.id;
+  map.has_pose = true;
+  map.world_from_cam = match.world_from_cam;
+  map.focal_px = match.focal_px;
+  std::vector<DescriptorMatch> matches;
+  std::vector<int> best_distance(query.size(), std::numeric_limits<int>::max());
+  std::vector<int> query_match(query.size(), -1);  // index into `matches`
+  const Sim3d match_from_world = match.world_from_cam.Inverse();
+  const int64_t mi = static_cast<int64_t>(match_index);
+  for (int64_t w = mi - lm.window; w <= mi + lm.window; ++w) {
+    if (!usable(w)) continue;
+    const KeyframeRecord& kf = Stored(static_cast<size_t>(w));
+    std::vector<const KeyframeRecord*> neighbours;
+    for (int64_t k = 1; k <= lm.neighbours; ++k) {
+      if (usable(w + k)) neighbours.push_back(&Stored(static_cast<size_t>(w + k)));
+      if (usable(w - k)) neighbours.push_back(&Stored(static_cast<size_t>(w - k)));
+    }
+    const TriangulationResult tri = TriangulateFromNeighbours(kf, neighbours, lm.triangulation);
+    if (tri.triangulated == 0) continue;
+    const Sim3d match_from_kf = match_from_world * kf.world_from_cam;
+    std::vector<int> map_index(kf.size(), -1);
+    for (size_t j = 0; j < kf.size(); ++j) {
+      if (tri.depths[j] <= 0) continue;
+      const Eigen::Vector3d p =
+          match_from_kf *
+          (double(tri.depths[j]) * Eigen::Vector3d(kf.keypoints[j].x, kf.keypoints[j].y, 1.0));
+      if (p.z() <= 0) continue;
+      CompactKeypoint c = kf.keypoints[j];
+      c.x = static_cast<float>(p.x() / p.z());
+      c.y = static_cast<float>(p.y() / p.z());
+      map_index[j] = static_cast<int>(map.keypoints.size());
+      map.keypoints.push_back(c);
+      map.descriptors.push_back(kf.descriptors[j]);
+      map.depths.push_back(static_cast<float>(p.z()));
+    }
+    // Matched per keyframe (the ratio test within one keyframe; the same point seen from two map
+    // keyframes would fail it across them), then the closest descriptor per query keypoint.
+    for (const DescriptorMatch& m : MatchQuery(query, kf.descriptors)) {
+      if (map_index[m.train] < 0 || m.distance >= best_distance[m.query]) continue;
+      best_distance[m.query] = m.distance;
+      const DescriptorMatch dm{m.query, map_index[m.train], m.distance};
+      if (query_match[m.query] < 0) {
+        query_match[m.query] = static_cast<int>(matches.size());
+        matches.push_back(dm);
+      } else {
+        matches[static_cast<size_t>(query_match[m.query])] = dm;
+      }
+    }
+  }
+  *map_points = static_cast<int>(map.size());
+  VerificationResult none;
+  none.method = VerificationMethod::kPnP;
+  if (static_cast<int>(matches.size()) < verify_.min_inliers) return none;
+  std::sort(matches.begin(), matches.end(),
+            [](const DescriptorMatch& a, const DescriptorMatch& b) { return a.query < b.query; });
+  // The query's own points, triangulated with the keyframes before it (in the query's local
+  // scale): with both sides in 3D the relative pose is a Sim(3), whose scale is the scale drift
+  // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
+  // the 3D-3D model does not verify.
+  KeyframeRecord q = query;
+  if (query.has_pose) {
+    std::vector<const KeyframeRecord*> before;
+    for (int64_t k = 1; k <= lm.neighbours; ++k) {
+      const int64_t i = static_cast<int64_t>(query_index) - k;
+      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose())
+        before.push_back(&Stored(static_cast<size_t>(i)));
+    }
+    const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
+    if (tri.triangulated > 0) q.depths = tri.depths;
+  }
+  VerificationResult v = VerifyPair(q, map, matches, verify_);
+  if (v.pose_kind == RelativePoseKind::kSE3Metric && q.has_depths())
+    AddQueryScale(q, map, matches, &v);
+  return v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3
+             ? v
+             : none;
+}
+
+}  // namespace sparseloop
