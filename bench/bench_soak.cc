@@ -17,9 +17,9 @@
 //
 // Every `window` keyframes one CSV row: keyframes, peak RSS (VmHWM) and current RSS (VmRSS) in KiB
 // from /proc/self/status, mean and p99 ms per keyframe (Process + pushes) in the window, loops
-// so far, optimizer solves so far, detector record bytes (sum of Bytes()). At the end
-// the RSS slope over the second half (bytes per keyframe, least squares) and a JSON summary go
-// to stdout.
+// so far, optimizer solves so far, detector record bytes (sum of the stored
+// PackedKeyframe::Bytes()). At the end the RSS slope over the second half (bytes per keyframe,
+// least squares) and a JSON summary go to stdout.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -200,7 +200,7 @@ int main(int argc, char** argv) {
     in.intrinsics = cam;
     in.world_from_cam = pose;
     const sparseloop::LoopEvent e = closing.AddKeyframe(in);
-    record_bytes += closing.detector().record(i).Bytes();
+    record_bytes += closing.detector().packed_record(i).Bytes();
     if (e.result.detected()) ++loops;
     window_ms.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
