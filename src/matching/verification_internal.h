@@ -1,0 +1,73 @@
+#pragma once
+// Internal to the matching module: the pieces the estimators of VerifyPair share
+// (geometric_verification.cc dispatches; essential.cc, pnp.cc, sim3 / fundamental in
+// geometric_verification.cc, planar_alternatives.cc). One estimator per file, as PoseLib does.
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "sparseloop/matching/geometric_verification.h"
+
+namespace sparseloop::matching_internal {
+
+// R (3x3) and t (3x1) from OpenCV as a Sim(3) with `scale`.
+Sim3d FromCv(const cv::Mat& r_cv, const cv::Mat& t_cv, double scale = 1.0);
+
+inline Eigen::Vector3d Bearing(const CompactKeypoint& k) { return {k.x, k.y, 1.0}; }
+
+// PnP: 3D points (keypoint bearing x depth) of the side with depths, 2D observations on the
+// other; EPnP inside RANSAC, then Levenberg-Marquardt on the inliers and one re-collection of
+// the inliers with the refined pose (EPnP from a minimal set is noisy with stereo-grade depths).
+// Sets method, inliers, inlier_matches, match_from_query and pose_kind (kNone on failure).
+void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
+               const std::vector<DescriptorMatch>& matches, bool points_in_match,
+               const VerifyOptions& options, double threshold, VerificationResult* result);
+
+// The matches of a pair without depths as normalised image points, both as OpenCV points (for
+// the RANSAC estimators) and as homogeneous vectors (for the refinement).
+struct TwoViewData {
+  std::vector<cv::Point2f> pts_match, pts_query;
+  std::vector<Eigen::Vector3d> all_m, all_q;
+  double threshold = 0;  // inlier threshold, normalised units
+};
+
+TwoViewData MakeTwoViewData(const KeyframeRecord& query, const KeyframeRecord& match,
+                            const std::vector<DescriptorMatch>& matches, double threshold);
+
+// query_from_match: x_query = R x_match + t, |t| = 1.
+struct TwoViewModel {
+  Eigen::Matrix3d r;
+  Eigen::Vector3d t;
+};
+
+// Matches whose Sampson distance under the model is below the threshold.
+std::vector<uint8_t> InlierMask(const TwoViewData& d, const TwoViewModel& mdl);
+// Local optimisation (LO-RANSAC style): refine (R, t) on the inliers, re-select the inliers among
+// ALL matches with the refined model, repeat until the set is stable. Returns the inlier mask.
+std::vector<uint8_t> LocallyOptimise(const TwoViewData& d, int rounds, TwoViewModel* mdl);
+// The decomposition of the refined essential matrix with most inliers in front of both cameras
+// (recoverPose), then a cheirality check per inlier; fills inliers, inlier_matches, pose_kind and
+// match_from_query (unit translation) of `result`.
+void FinishTwoView(const TwoViewData& d, const TwoViewModel& mdl, std::vector<uint8_t> in,
+                   VerificationResult* result);
+
+// The essential-matrix estimator (no depths): RANSAC, local optimisation, decomposition; sets
+// method, inliers, inlier_matches, match_from_query and pose_kind (kNone on failure).
+void VerifyEssential(const TwoViewData& data, size_t num_matches, const VerifyOptions& options,
+                     VerificationResult* result);
+
+// VerifyOptions' acceptance of a pose with `inliers` of `num_matches` matches.
+inline bool Accepted(const VerifyOptions& options, int inliers, size_t num_matches) {
+  return inliers >= options.min_inliers &&
+         inliers >= options.min_inlier_ratio * static_cast<double>(num_matches);
+}
+
+// Depths on both sides: 3-point Sim(3) RANSAC on the 3D points, and when that is not accepted,
+// PnP of the match's 3D points against the query's observations. Fills *result (success too).
+void VerifySim3(const KeyframeRecord& query, const KeyframeRecord& match,
+                const std::vector<DescriptorMatch>& matches, const VerifyOptions& options,
+                double threshold, float focal, VerificationResult* result);
+
+}  // namespace sparseloop::matching_internal
