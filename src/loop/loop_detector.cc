@@ -207,8 +207,10 @@ size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
   any_pose_ |= rec.has_pose();
   any_missing_pose_ |= !rec.has_pose();
   index_of_[rec.id()] = index;
-  // No place on the trajectory without a pose.
+  // No place on the trajectory without a pose (its path length is never read: FarAlong needs
+  // both poses).
   if (!relocalize) search_.Add(rec.id(), last_position_);
+  path_length_.push_back(relocalize ? 0.0 : search_.PathLength(rec.id()));
   records_.push_back(std::move(rec));
   return index;
 }
@@ -227,12 +229,11 @@ void LoopDetector::RelocalizeStored(const KeyframeRecord& query, LoopResult* res
   MatchAndVerifyPool(query, pool, result);
 }
 
-bool LoopDetector::FarAlong(const KeyframeRecord& query, size_t ci) const {
+bool LoopDetector::FarAlong(const KeyframeRecord& query, size_t query_index, size_t ci) const {
   const PackedKeyframe& c = records_[ci];
   if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose()) return true;
   const double chord = (query.world_from_cam.translation - c.world_from_cam().translation).norm();
-  return search_.PathLength(query.id) - search_.PathLength(c.id()) >=
-         options_.min_path_ratio * chord;
+  return path_length_[query_index] - path_length_[ci] >= options_.min_path_ratio * chord;
 }
 
 std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query, size_t index,
@@ -241,7 +242,7 @@ std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query,
   std::vector<int64_t> candidates;
   candidates.reserve(area.candidates.size());
   for (int64_t id : area.candidates)
-    if (FarAlong(query, index_of_.at(id))) candidates.push_back(id);
+    if (FarAlong(query, index, index_of_.at(id))) candidates.push_back(id);
   if (!query.has_pose && options_.overlap_gap > 0 && !candidates.empty()) {
     const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
     const size_t start = OverlapStart(query, index > exclude ? index - exclude : 0);
@@ -270,7 +271,7 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   std::vector<int64_t> others;
   for (size_t ci = 0; ci + exclude < index; ++ci) {
     const PackedKeyframe& c = records_[ci];
-    if (c.has_pose() && FarAlong(query, ci) &&
+    if (c.has_pose() && FarAlong(query, index, ci) &&
         !std::binary_search(in_area.begin(), in_area.end(), c.id()))
       others.push_back(c.id());
   }

@@ -194,7 +194,8 @@ class CliqueFinder {
 struct ChainStatistics {
   std::vector<double> t2, r2, w0, w2;
   std::vector<Eigen::Vector3d> w1;
-  double ss2 = 0.0;  // scale variance per step
+  double ss2 = 0.0;                 // scale variance per step
+  const std::vector<Sim3d>& poses;  // the raw poses the sums are over
 
   ChainStatistics(const std::vector<Sim3d>& raw_poses, const std::vector<double>& step_t2,
                   const std::vector<double>& step_r2, double sr2, double scale_variance)
@@ -203,7 +204,8 @@ struct ChainStatistics {
         w0(raw_poses.size() + 1, 0.0),
         w2(raw_poses.size() + 1, 0.0),
         w1(raw_poses.size() + 1, Eigen::Vector3d::Zero()),
-        ss2(scale_variance) {
+        ss2(scale_variance),
+        poses(raw_poses) {
     const size_t m = raw_poses.size();
     for (size_t i = 0; i < m; ++i) {
       if (i > 0) {
@@ -219,11 +221,10 @@ struct ChainStatistics {
   }
 
   // Diagonal covariance of the chain from vertex index i to j, expressed at j.
-  Eigen::Matrix<double, 7, 1> Covariance(size_t i, size_t j,
-                                         const std::vector<Sim3d>& raw_poses) const {
+  Eigen::Matrix<double, 7, 1> Covariance(size_t i, size_t j) const {
     if (i > j) std::swap(i, j);
     Eigen::Matrix<double, 7, 1> cov = Eigen::Matrix<double, 7, 1>::Zero();
-    const Eigen::Vector3d& pj = raw_poses[j].translation;
+    const Eigen::Vector3d& pj = poses[j].translation;
     // sum_{k in [i, j)} w_k |p_j - p_k|^2: the lever arm of rotation / scale drift at step k.
     const double lever =
         (w0[j] - w0[i]) * pj.squaredNorm() - 2.0 * pj.dot(w1[j] - w1[i]) + (w2[j] - w2[i]);
@@ -315,9 +316,8 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
                           (raw_poses_[mb].Inverse() * raw_poses_[ma]);
       Vector7d e = cycle.Log();
       if (!sim3) e[6] = 0.0;
-      const Eigen::Matrix<double, 7, 1> cov = cov_a + LoopMarginalVariances(lb) +
-                                              chains.Covariance(qa, qb, raw_poses_) +
-                                              chains.Covariance(ma, mb, raw_poses_);
+      const Eigen::Matrix<double, 7, 1> cov =
+          cov_a + LoopMarginalVariances(lb) + chains.Covariance(qa, qb) + chains.Covariance(ma, mb);
       double chi2 = 0.0;
       int dof = 0;
       for (int d = 0; d < 7; ++d) {

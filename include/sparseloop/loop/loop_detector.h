@@ -355,9 +355,9 @@ class LoopDetector {
   // recent keyframes when there is no pose (overlap_gap), and voted (retrieval kAnn).
   std::vector<int64_t> SearchCandidates(const KeyframeRecord& query, size_t index,
                                         LoopResult* result);
-  // min_path_ratio: the path between stored record `ci` and the query >= ratio x their distance
-  // (true when it cannot be measured).
-  bool FarAlong(const KeyframeRecord& query, size_t ci) const;
+  // min_path_ratio: the path between stored record `ci` and the query (record `query_index`) >=
+  // ratio x their distance (true when it cannot be measured).
+  bool FarAlong(const KeyframeRecord& query, size_t query_index, size_t ci) const;
   // appearance_fallback: every eligible stored keyframe outside `in_area` is ranked and verified.
   void AppearanceFallback(const KeyframeRecord& query, size_t index, std::vector<int64_t> in_area,
                           LoopResult* result);
@@ -465,6 +465,9 @@ class LoopDetector {
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();  // of the last keyframe with a pose
+  // SearchArea::PathLength of each record, read once when it is stored: FarAlong reads it for
+  // every candidate (the appearance fallback: every stored keyframe) without a hash lookup.
+  std::vector<double> path_length_;
   std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
   size_t ann_indexed_ = 0;             // records_[0, ann_indexed_) are in ann_
   // Earlier sessions (AddPriorKeyframes), searched by appearance only.
