@@ -1,7 +1,13 @@
 #!/usr/bin/env python3
 """One-page HTML report of a sparseloop run directory (headless, matplotlib Agg).
 
-Usage: report.py DIR [--false-loop-distance METRES]   (default: summary.json gt_loop_distance)
+Usage: report.py DIR [--false-loop-distance METRES] [--sparseloop BIN]
+  --false-loop-distance  re-score the loops at this GT distance (default: the run's own verdicts,
+                         loops.csv "correct", at summary.json's gt_loop_distance)
+  --sparseloop           the binary whose `eval` scores loops (default: $SPARSELOOP_BIN, then
+                         sparseloop on PATH); needed only to re-score or for a P/R curve from
+                         gt_loops.txt. Loops are never scored here: `sparseloop eval` is the one
+                         definition (docs/METRICS.md).
 
 Reads (every file optional except at least one trajectory):
   poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
@@ -27,7 +33,10 @@ import html
 import json
 import math
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 
 import matplotlib
 
@@ -139,15 +148,24 @@ def read_loops(path):
     return loops
 
 
-def read_pairs(path):
-    pairs = set()
-    with open(path) as f:
-        for line in f:
-            t = line.split()
-            if len(t) >= 2 and not line.startswith("#"):
-                i, j = int(t[0]), int(t[1])
-                pairs.add((max(i, j), min(i, j)))
-    return pairs
+def find_sparseloop(args):
+    return args.sparseloop or os.environ.get("SPARSELOOP_BIN") or shutil.which("sparseloop")
+
+
+def eval_loops(args, loops_csv, flags):
+    """`sparseloop eval --loops LOOPS FLAGS --json`: its JSON (the loop keys of docs/METRICS.md)."""
+    exe = find_sparseloop(args)
+    if not exe:
+        raise ReportError("scoring loops needs the sparseloop binary (its `eval`): pass "
+                          "--sparseloop BIN or set SPARSELOOP_BIN")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "eval.json")
+        done = subprocess.run([exe, "eval", "--loops", loops_csv, *flags, "--json", out],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            raise ReportError(f"sparseloop eval on {loops_csv} failed: {done.stderr.strip()}")
+        with open(out) as f:
+            return json.load(f)
 
 
 def main():
@@ -156,6 +174,9 @@ def main():
     ap.add_argument("--false-loop-distance", type=float, default=None,
                     help="GT distance beyond which a loop is false (default: summary.json's "
                          "gt_loop_distance, else 10)")
+    ap.add_argument("--sparseloop", default=None,
+                    help="sparseloop binary whose eval scores loops (default: $SPARSELOOP_BIN, "
+                         "then PATH)")
     args = ap.parse_args()
     try:
         return make_report(args)
@@ -248,13 +269,18 @@ def make_report(args):
             lut = {i: i for i in range(len(base_keys))}
         else:
             lut = {int(k): i for i, k in enumerate(base_keys)} if base_label else {}
-        if gt is None:
-            gt_lut = {}
-        elif gt[2] == "index":
-            gt_lut = {int(k): i for i, k in enumerate(gt[0])}
-        else:
-            gt_lut = {i: i for i in range(len(gt[0]))}
-        for q, m, _, accepted, correct in loops:
+        # Re-scored at --false-loop-distance by `sparseloop eval` (GT by frame id: row of a TUM
+        # file, index of a KITTI one), else the run's own verdicts (loops.csv "correct").
+        verdicts = None
+        own = all(l[4] is not None for l in loops)
+        if gt is not None and (args.false_loop_distance is not None or not own):
+            if args.false_loop_distance is None and not find_sparseloop(args):
+                notes.append("loops.csv has no verdicts and no sparseloop binary was found to "
+                             "score them (--sparseloop): no loop is drawn as false")
+            else:
+                verdicts = eval_loops(args, fp("loops.csv"), [
+                    "--gt", fp(gt[3]), "--correct-distance", str(false_distance)])["loop_verdicts"]
+        for k, (q, m, _, accepted, correct) in enumerate(loops):
             if accepted is False:  # rejected by the pose graph: drawn as rejected
                 n_rejected += 1
                 if q in lut and m in lut:
@@ -262,11 +288,10 @@ def make_report(args):
                     ax.plot([a[ax_idx[0]], b[ax_idx[0]]], [a[ax_idx[1]], b[ax_idx[1]]], ":",
                             color="tab:grey", lw=1.0, alpha=0.9)
                 continue
-            false = False
-            if correct is not None and args.false_loop_distance is None:
-                false = not correct  # the run's own verdict, at its threshold
-            elif gt_lut and q in gt_lut and m in gt_lut:
-                false = np.linalg.norm(gt[1][gt_lut[q]] - gt[1][gt_lut[m]]) > false_distance
+            if verdicts is not None:
+                false = verdicts[k] == "false"
+            else:
+                false = correct is False  # the run's own verdict, at its threshold
             n_false += false
             n_true += not false
             if q not in lut or m not in lut:
@@ -276,7 +301,7 @@ def make_report(args):
                     color="tab:orange" if false else "tab:green", lw=1.5 if false else 0.8,
                     alpha=0.9)
         ax.plot([], [], "-", color="tab:green", label=f"accepted loops, correct ({n_true})")
-        if gt_lut:
+        if gt is not None:
             ax.plot([], [], "-", color="tab:orange",
                     label=f"accepted loops, false ({n_false}, GT dist > {false_distance:g})")
         if n_rejected:
@@ -367,14 +392,8 @@ def make_report(args):
             rows = list(csv.DictReader(f))
         curve = [(float(r["recall"]), float(r["precision"])) for r in rows]
     elif os.path.isfile(fp("gt_loops.txt")) and loops:
-        gt_pairs = read_pairs(fp("gt_loops.txt"))
-        gt_queries = {q for q, _ in gt_pairs}
-        ranked = sorted(loops, key=lambda l: -l[2] if not math.isnan(l[2]) else 0)
-        tp = 0
-        curve = []
-        for k, (q, m, *_) in enumerate(ranked, 1):
-            tp += (q, m) in gt_pairs
-            curve.append((tp / max(len(gt_queries), 1), tp / k))
+        e = eval_loops(args, fp("loops.csv"), ["--gt-loops", fp("gt_loops.txt")])
+        curve = [(p["recall"], p["precision"]) for p in e["loops"]["curve"]]
     if curve:
         r, p = zip(*curve)
         fig, ax = plt.subplots(figsize=(4.5, 4))

@@ -132,13 +132,12 @@ def run_all(r, quick):
     timings["micro_s"] = time.time() - t3
     timings["total_s"] = time.time() - t0
 
-    gt_cache = {}
     metrics = {}
     for (seq, variant), d in runs.items():
         world = "street" if seq.startswith("street") else "aerial"
         seq_dir = r.out / "seq" / seq
-        metrics.setdefault(seq, {})[variant] = run_metrics(d, seq_dir, world, gt_cache)
-    baselines = {v: run_metrics(d, r.out / "seq" / base_seq, "street", gt_cache)
+        metrics.setdefault(seq, {})[variant] = run_metrics(r.bin, d, seq_dir, world)
+    baselines = {v: run_metrics(r.bin, d, r.out / "seq" / base_seq, "street")
                  for v, d in base_runs.items()}
     return {"sequences": {n: {"world": w, "render_args": a} for n, (w, a) in seqs.items()},
             "k_sweep": k_sweep(quick), "metrics": metrics, "baselines": baselines,

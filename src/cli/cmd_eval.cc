@@ -1,6 +1,7 @@
 // sparseloop eval: trajectory metrics (ATE, RPE, KITTI devkit) and loop precision/recall.
 // Parses arguments, calls the eval library, prints a table and optionally writes JSON.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <optional>
@@ -75,7 +76,9 @@ struct EvalFlags {
   EvaluationOptions options;
   GtLoopOptions gt_loop_options;
   LoopEvalOptions loop_options;
+  double correct_distance = 0.0;  // > 0: loops scored by GT distance (ScoreLoopsByGtDistance)
   bool trajectories() const { return !est_path.empty(); }
+  bool by_distance() const { return correct_distance != 0.0; }
 };
 
 void AddEvalFlags(CLI::App& app, EvalFlags* f) {
@@ -105,6 +108,15 @@ void AddEvalFlags(CLI::App& app, EvalFlags* f) {
   app.add_option("--view-angle", f->gt_loop_options.max_view_angle_deg,
                  "with --derive-loops: max angle between viewing directions, degrees")
       ->capture_default_str();
+  app.add_option("--min-path", f->gt_loop_options.min_path,
+                 "with --derive-loops: least GT path between the two frames of a GT loop (GT "
+                 "units); with --correct-distance also the path below which a correct loop is "
+                 "trivial (left out)")
+      ->capture_default_str();
+  app.add_option("--correct-distance", f->correct_distance,
+                 "score loops by GT distance (needs --gt): a loop is correct when the GT "
+                 "positions of its frames are closer than this (GT units), instead of matching "
+                 "GT pairs");
   app.add_option("--loops", f->loops_path, "detector loops.csv (columns query,match,score,...)");
   app.add_option("--frame-tolerance", f->loop_options.frame_tolerance,
                  "allowed |match - gt match| in frames for a correct loop")
@@ -120,12 +132,19 @@ void CheckEvalFlags(EvalFlags* f) {
                "--rpe-unit must be frames or m, got '{}'", f->rpe_unit);
   f->options.rpe.unit = f->rpe_unit == "m" ? RpeUnit::kMeters : RpeUnit::kFrames;
   if (!f->derive_loops.empty()) {
-    const double angle = f->gt_loop_options.max_view_angle_deg;
+    const GtLoopOptions from_flags = f->gt_loop_options;
     f->gt_loop_options = ParseDeriveLoops(f->derive_loops);
-    f->gt_loop_options.max_view_angle_deg = angle;
+    f->gt_loop_options.max_view_angle_deg = from_flags.max_view_angle_deg;
+    f->gt_loop_options.min_path = from_flags.min_path;
   }
-  SL_CHECK_MSG(f->loops_path.empty() || !f->gt_loops_path.empty() || !f->derive_loops.empty(),
-               "--loops needs ground-truth loops: give --gt-loops FILE or --derive-loops DIST,GAP");
+  SL_CHECK_MSG(!f->by_distance() || (std::isfinite(f->correct_distance) && f->correct_distance > 0),
+               "--correct-distance must be a distance > 0, got {}", f->correct_distance);
+  SL_CHECK_MSG(!f->by_distance() || (!f->gt_path.empty() && !f->loops_path.empty()),
+               "--correct-distance needs --gt (the GT positions) and --loops (what to score)");
+  SL_CHECK_MSG(f->loops_path.empty() || !f->gt_loops_path.empty() || !f->derive_loops.empty() ||
+                   f->by_distance(),
+               "--loops needs ground-truth loops (--gt-loops FILE or --derive-loops DIST,GAP) "
+               "or --correct-distance D with --gt (verdicts by GT distance)");
   // Trajectory metrics need --gt and --est; loops alone need --loops and --gt-loops.
   SL_CHECK_MSG(!f->trajectories() || !f->gt_path.empty(),
                "--est needs --gt (the ground truth to compare with)");
@@ -150,7 +169,8 @@ void CheckEvalOptions(const Trajectory& gt, const Trajectory& est, EvalFlags* f)
                     {"max_view_angle_deg", "--view-angle"},
                     {"frame_tolerance", "--frame-tolerance"},
                     {"GT loop distance", "--derive-loops DIST"},
-                    {"GT loop min_gap", "--derive-loops GAP"}},
+                    {"GT loop min_gap", "--derive-loops GAP"},
+                    {"GT loop min_path", "--min-path"}},
                    [&] {
                      f->options.Check();
                      f->loop_options.Check();
@@ -171,9 +191,32 @@ std::optional<std::vector<LoopPair>> GtLoopsFor(const EvalFlags& f, const Trajec
   return std::nullopt;
 }
 
+// The loops scored as the flags ask: against GT pairs, or by GT distance (--correct-distance).
+struct LoopScores {
+  std::optional<LoopPrResult> by_pairs;
+  std::optional<GtDistanceScore> by_distance;
+  const LoopPrResult* all() const { return by_pairs ? &*by_pairs : &by_distance->all; }
+};
+
+std::optional<LoopScores> ScoreLoops(const EvalFlags& f, const Trajectory& gt,
+                                     const std::vector<LoopPair>& gt_loops) {
+  if (f.loops_path.empty()) return std::nullopt;
+  const std::vector<Detection> detections = ReadDetections(f.loops_path);
+  LoopScores scores;
+  if (!f.by_distance()) {
+    scores.by_pairs = EvaluateLoops(detections, gt_loops, f.loop_options);
+    return scores;
+  }
+  GtDistanceScoringOptions options;
+  options.correct_distance = f.correct_distance;
+  options.trivial_path = f.gt_loop_options.min_path;
+  scores.by_distance = ScoreLoopsByGtDistance(detections, gt_loops, gt, options);
+  return scores;
+}
+
 void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
                    const std::optional<std::vector<LoopPair>>& gt_loops,
-                   const std::optional<LoopPrResult>& loops) {
+                   const std::optional<LoopScores>& loops) {
   const auto path_or_null = [](const std::string& p) {
     return p.empty() ? nlohmann::json(nullptr) : nlohmann::json(p);
   };
@@ -184,7 +227,12 @@ void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
   j["loops_file"] = path_or_null(f.loops_path);
   j["gt_loops_file"] = path_or_null(f.gt_loops_path);
   j["gt_loop_pairs"] = gt_loops ? nlohmann::json(gt_loops->size()) : nlohmann::json(nullptr);
-  AddLoopKeys(j, loops ? &*loops : nullptr);
+  if (loops && loops->by_distance) {
+    j["correct_distance"] = f.correct_distance;
+    AddLoopKeys(j, *loops->by_distance);
+  } else {
+    AddLoopKeys(j, loops ? loops->all() : nullptr);
+  }
   WriteFileAtomically(f.json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
   std::cout << "wrote " << f.json_path << "\n";
 }
@@ -222,18 +270,26 @@ int RunEval(int argc, char** argv) {
   }
 
   const std::optional<std::vector<LoopPair>> gt_loops = GtLoopsFor(f, gt);
-  std::optional<LoopPrResult> loops;
-  if (!f.loops_path.empty())
-    loops = EvaluateLoops(ReadDetections(f.loops_path), *gt_loops, f.loop_options);
+  const std::optional<LoopScores> loops =
+      ScoreLoops(f, gt, gt_loops.value_or(std::vector<LoopPair>()));
 
   // ---- table ----
   if (f.trajectories()) PrintTrajectoryTable(e, options, f.est_path, est, f.gt_path, gt);
   if (gt_loops) std::cout << fmt::format("GT loops     {} pairs\n", gt_loops->size());
   if (loops) {
+    const LoopPrResult& all = *loops->all();
     std::cout << fmt::format(
         "Loops        {} detections, {} correct, precision {}  recall {}  recall@100%P {}\n",
-        loops->num_detections, loops->true_positives, Num(loops->precision), Num(loops->recall),
-        Num(loops->recall_at_100p));
+        all.num_detections, all.true_positives, Num(all.precision), Num(all.recall),
+        Num(all.recall_at_100p));
+    if (loops->by_distance) {
+      const GtDistanceScore& s = *loops->by_distance;
+      std::cout << fmt::format(
+          "  by GT distance < {}: {} trivial, {} without GT; accepted {} ({} false), "
+          "recall@100%P {}; GT events {} ({} detected)\n",
+          f.correct_distance, s.trivial, s.no_gt, s.accepted.num_detections,
+          s.accepted.false_positives, Num(s.accepted.recall_at_100p), s.events, s.events_detected);
+    }
   }
   if (!f.json_path.empty()) WriteEvalJson(f, e, gt_loops, loops);
   return 0;

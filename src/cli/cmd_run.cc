@@ -254,7 +254,12 @@ int RunRun(int argc, char** argv) {
   if (gt) WriteTrajectory(out / "poses_gt.txt", *gt, TrajectoryFormat::kTum);
 
   std::optional<LoopTruth> truth;
-  if (gt) truth = ClassifyLoopsAgainstGt(result.loops, *gt, raw, run_flags.gt_loop_distance);
+  if (gt) {
+    std::vector<LoopPair> pairs;
+    for (const LoopResult& l : result.loops) pairs.push_back({l.query_id, l.match_id});
+    truth = ClassifyLoopsByGtDistance(pairs, *gt, run_flags.gt_loop_distance,
+                                      {&raw, options.raw_association_max_dt});
+  }
   {
     // In-session loops first (accepted / correct known), then loops into earlier map sessions.
     std::vector<LoopResult> rows = result.loops;

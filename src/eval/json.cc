@@ -130,4 +130,18 @@ void AddLoopKeys(nlohmann::json& out, const LoopPrResult* loops) {
   out["loops"] = ToJson(*loops);
 }
 
+void AddLoopKeys(nlohmann::json& out, const GtDistanceScore& score) {
+  AddLoopKeys(out, &score.all);
+  out["loop_false_accepted"] = score.accepted.false_positives;
+  out["loop_recall_at_100p_accepted"] = OrNull(score.accepted.recall_at_100p);
+  out["loop_trivial"] = score.trivial;
+  out["loop_no_gt"] = score.no_gt;
+  out["loop_events"] = score.events;
+  out["loop_events_detected"] = score.events_detected;
+  out["loops_accepted"] = ToJson(score.accepted);
+  nlohmann::json verdicts = nlohmann::json::array();
+  for (LoopVerdict v : score.verdicts) verdicts.push_back(ToString(v));
+  out["loop_verdicts"] = verdicts;
+}
+
 }  // namespace sparseloop

@@ -121,6 +121,9 @@ std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
   const size_t query_col = column("query");
   const size_t match_col = column("match");
   const size_t score_col = column("score");
+  const auto accepted_it = std::find(header.begin(), header.end(), "accepted");
+  const bool has_accepted = accepted_it != header.end();
+  const size_t accepted_col = static_cast<size_t>(accepted_it - header.begin());
   std::vector<Detection> out;
   while (std::getline(in, line)) {
     ++line_no;
@@ -144,6 +147,14 @@ std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
       throw FileError(path.string(), line_no, "a finite number as score",
                       "'" + fields[score_col] + "'");
     }
+    if (has_accepted) {
+      const std::string& a = fields[accepted_col];
+      if (a != "0" && a != "1" && !a.empty()) {
+        throw FileError(path.string(), line_no, "0, 1 or nothing in the accepted column",
+                        "'" + a + "'");
+      }
+      d.accepted = a == "1";
+    }
     out.push_back(d);
   }
   return out;
@@ -154,32 +165,27 @@ void LoopEvalOptions::Check() const {
                frame_tolerance);
 }
 
-LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
-                           const std::vector<LoopPair>& gt, const LoopEvalOptions& options) {
-  options.Check();
-  // GT matches per query, as (later, earlier).
-  std::map<int64_t, std::set<int64_t>> gt_matches;
+namespace {
+
+using GtMatches = std::map<int64_t, std::set<int64_t>>;  // GT query -> its GT matches
+
+GtMatches GtMatchesOf(const std::vector<LoopPair>& gt) {
+  GtMatches gt_matches;  // as (later, earlier)
   for (const auto& p : gt) {
     gt_matches[std::max(p.query, p.match)].insert(std::min(p.query, p.match));
   }
+  return gt_matches;
+}
+
+// Precision, recall and the P/R curve of `detections` given each one's verdict: thresholds swept
+// from the highest score down; a correct detection recalls its query when it is a GT query.
+LoopPrResult SweepThresholds(const std::vector<Detection>& detections,
+                             const std::vector<bool>& correct, const GtMatches& gt_matches) {
   LoopPrResult result;
   result.num_detections = detections.size();
   result.num_gt_queries = gt_matches.size();
   for (const auto& [q, ms] : gt_matches) result.num_gt_pairs += ms.size();
-
-  result.correct.resize(detections.size(), false);
-  for (size_t k = 0; k < detections.size(); ++k) {
-    SL_CHECK_MSG(std::isfinite(detections[k].score), "detection {} has a non-finite score", k);
-    const int64_t query = std::max(detections[k].query, detections[k].match);
-    const int64_t match = std::min(detections[k].query, detections[k].match);
-    const auto it = gt_matches.find(query);
-    if (it == gt_matches.end()) continue;
-    // Any GT match within [match - tol, match + tol]?
-    const auto lo = it->second.lower_bound(match - options.frame_tolerance);
-    result.correct[k] = lo != it->second.end() && *lo <= match + options.frame_tolerance;
-  }
-
-  // Sweep thresholds from the highest score down.
+  result.correct = correct;
   std::vector<size_t> order(detections.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = k;
   std::stable_sort(order.begin(), order.end(),
@@ -191,9 +197,10 @@ LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
     const double threshold = detections[order[pos]].score;
     for (; pos < order.size() && detections[order[pos]].score == threshold; ++pos) {
       const size_t k = order[pos];
-      if (!result.correct[k]) continue;
+      if (!correct[k]) continue;
       ++tp;
-      recalled.insert(std::max(detections[k].query, detections[k].match));
+      const int64_t query = std::max(detections[k].query, detections[k].match);
+      if (gt_matches.count(query)) recalled.insert(query);
     }
     LoopPrPoint point;
     point.threshold = threshold;
@@ -218,6 +225,190 @@ LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
     result.recall_at_100p = best_recall_at_100p.value_or(0.0);
   }
   return result;
+}
+
+void CheckScores(const std::vector<Detection>& detections) {
+  for (size_t k = 0; k < detections.size(); ++k) {
+    SL_CHECK_MSG(std::isfinite(detections[k].score), "detection {} has a non-finite score", k);
+  }
+}
+
+}  // namespace
+
+LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
+                           const std::vector<LoopPair>& gt, const LoopEvalOptions& options) {
+  options.Check();
+  CheckScores(detections);
+  const GtMatches gt_matches = GtMatchesOf(gt);
+  std::vector<bool> correct(detections.size(), false);
+  for (size_t k = 0; k < detections.size(); ++k) {
+    const int64_t query = std::max(detections[k].query, detections[k].match);
+    const int64_t match = std::min(detections[k].query, detections[k].match);
+    const auto it = gt_matches.find(query);
+    if (it == gt_matches.end()) continue;
+    // Any GT match within [match - tol, match + tol]?
+    const auto lo = it->second.lower_bound(match - options.frame_tolerance);
+    correct[k] = lo != it->second.end() && *lo <= match + options.frame_tolerance;
+  }
+  return SweepThresholds(detections, correct, gt_matches);
+}
+
+// ---- Scoring by GT distance ----
+
+size_t LoopTruth::num_correct() const {
+  return std::count(correct.begin(), correct.end(), std::optional<bool>(true));
+}
+
+size_t LoopTruth::num_false() const {
+  return std::count(correct.begin(), correct.end(), std::optional<bool>(false));
+}
+
+namespace {
+
+// Index into gt.poses of each frame id's GT pose (GtFrameLookup's rule).
+class GtIndexOfFrame {
+ public:
+  GtIndexOfFrame(const Trajectory& gt, const GtFrameLookup& lookup) : gt_(gt), lookup_(lookup) {
+    for (size_t i = 0; i < gt.poses.size(); ++i) by_frame_[gt.poses[i].frame] = i;
+    if (lookup.frame_times != nullptr) {
+      for (const auto& p : lookup.frame_times->poses) time_of_frame_[p.frame] = p.timestamp;
+    }
+  }
+  std::optional<size_t> operator()(int64_t frame) const {
+    const auto t = time_of_frame_.find(frame);
+    if (gt_.has_timestamps && t != time_of_frame_.end()) {
+      return NearestPoseInTime(gt_, t->second, lookup_.max_dt);
+    }
+    const auto it = by_frame_.find(frame);
+    if (it == by_frame_.end()) return std::nullopt;
+    return it->second;
+  }
+
+ private:
+  const Trajectory& gt_;
+  GtFrameLookup lookup_;
+  std::unordered_map<int64_t, size_t> by_frame_;
+  std::unordered_map<int64_t, double> time_of_frame_;
+};
+
+double DefaultLoopTruthThreshold(const Trajectory& gt) {
+  const auto dist = gt.CumulativeDistances();
+  return dist.empty() ? 1.0 : std::min(0.05 * dist.back(), 10.0);
+}
+
+}  // namespace
+
+LoopTruth ClassifyLoopsByGtDistance(const std::vector<LoopPair>& loops, const Trajectory& gt,
+                                    double threshold, const GtFrameLookup& lookup) {
+  LoopTruth truth;
+  truth.threshold = threshold > 0 ? threshold : DefaultLoopTruthThreshold(gt);
+  const GtIndexOfFrame index_of(gt, lookup);
+  for (const LoopPair& l : loops) {
+    const auto q = index_of(l.query);
+    const auto m = index_of(l.match);
+    if (q && m) {
+      const double d =
+          (gt.poses[*q].world_from_cam.translation - gt.poses[*m].world_from_cam.translation)
+              .norm();
+      truth.correct.push_back(d < truth.threshold);
+    } else {
+      truth.correct.push_back(std::nullopt);
+    }
+  }
+  return truth;
+}
+
+void GtDistanceScoringOptions::Check() const {
+  SL_CHECK_MSG(std::isfinite(correct_distance) && correct_distance > 0.0,
+               "correct_distance must be > 0, got {}", correct_distance);
+  SL_CHECK_MSG(std::isfinite(trivial_path) && trivial_path >= 0.0,
+               "trivial_path must be >= 0, got {}", trivial_path);
+  SL_CHECK_MSG(event_gap >= 1, "event_gap must be >= 1 frame, got {}", event_gap);
+  SL_CHECK_MSG(event_margin >= 0, "event_margin must be >= 0 frames, got {}", event_margin);
+  SL_CHECK_MSG(std::isfinite(lookup.max_dt) && lookup.max_dt >= 0.0,
+               "max_dt must be >= 0 s, got {}", lookup.max_dt);
+}
+
+const char* ToString(LoopVerdict verdict) {
+  switch (verdict) {
+    case LoopVerdict::kCorrect:
+      return "correct";
+    case LoopVerdict::kFalse:
+      return "false";
+    case LoopVerdict::kTrivial:
+      return "trivial";
+    case LoopVerdict::kNoGt:
+      return "no_gt";
+  }
+  return "?";
+}
+
+namespace {
+
+// Runs of GT queries whose consecutive members are at most `gap` frames apart: [first, last].
+std::vector<std::pair<int64_t, int64_t>> GtEvents(const GtMatches& gt_matches, int64_t gap) {
+  std::vector<std::pair<int64_t, int64_t>> events;
+  for (const auto& [q, ms] : gt_matches) {  // ascending query
+    if (!events.empty() && q - events.back().second <= gap) {
+      events.back().second = q;
+    } else {
+      events.emplace_back(q, q);
+    }
+  }
+  return events;
+}
+
+}  // namespace
+
+GtDistanceScore ScoreLoopsByGtDistance(const std::vector<Detection>& detections,
+                                       const std::vector<LoopPair>& gt_loops, const Trajectory& gt,
+                                       const GtDistanceScoringOptions& options) {
+  options.Check();
+  CheckScores(detections);
+  const GtIndexOfFrame index_of(gt, options.lookup);
+  const std::vector<double> path = gt.CumulativeDistances();
+  GtDistanceScore score;
+  std::vector<Detection> kept, kept_accepted;
+  std::vector<bool> correct, correct_accepted;
+  for (const Detection& d : detections) {
+    const auto q = index_of(d.query);
+    const auto m = index_of(d.match);
+    LoopVerdict verdict = LoopVerdict::kNoGt;
+    if (q && m) {
+      const double dist =
+          (gt.poses[*q].world_from_cam.translation - gt.poses[*m].world_from_cam.translation)
+              .norm();
+      const bool near = dist < options.correct_distance;
+      verdict = !near                                                  ? LoopVerdict::kFalse
+                : std::abs(path[*q] - path[*m]) < options.trivial_path ? LoopVerdict::kTrivial
+                                                                       : LoopVerdict::kCorrect;
+    }
+    score.verdicts.push_back(verdict);
+    if (verdict == LoopVerdict::kTrivial) ++score.trivial;
+    if (verdict == LoopVerdict::kNoGt) ++score.no_gt;
+    if (verdict != LoopVerdict::kCorrect && verdict != LoopVerdict::kFalse) continue;
+    kept.push_back(d);
+    correct.push_back(verdict == LoopVerdict::kCorrect);
+    if (!d.accepted) continue;
+    kept_accepted.push_back(d);
+    correct_accepted.push_back(verdict == LoopVerdict::kCorrect);
+  }
+  const GtMatches gt_matches = GtMatchesOf(gt_loops);
+  score.all = SweepThresholds(kept, correct, gt_matches);
+  score.accepted = SweepThresholds(kept_accepted, correct_accepted, gt_matches);
+  const auto events = GtEvents(gt_matches, options.event_gap);
+  score.events = events.size();
+  for (const auto& [first, last] : events) {
+    for (size_t k = 0; k < kept_accepted.size(); ++k) {
+      const int64_t query = std::max(kept_accepted[k].query, kept_accepted[k].match);
+      if (correct_accepted[k] && query >= first - options.event_margin &&
+          query <= last + options.event_margin) {
+        ++score.events_detected;
+        break;
+      }
+    }
+  }
+  return score;
 }
 
 }  // namespace sparseloop

@@ -134,47 +134,6 @@ MappedPixels ReadMappedPixels(const std::filesystem::path& path) {
   return out;
 }
 
-size_t LoopTruth::num_correct() const {
-  return std::count(correct.begin(), correct.end(), std::optional<bool>(true));
-}
-size_t LoopTruth::num_false() const {
-  return std::count(correct.begin(), correct.end(), std::optional<bool>(false));
-}
-
-LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Trajectory& gt,
-                                 const Trajectory& raw_matched, double threshold, double max_dt) {
-  LoopTruth truth;
-  if (threshold <= 0) {
-    const auto dist = gt.CumulativeDistances();
-    threshold = dist.empty() ? 1.0 : std::min(0.05 * dist.back(), 10.0);
-  }
-  truth.threshold = threshold;
-  std::unordered_map<int64_t, size_t> gt_by_frame;
-  for (size_t i = 0; i < gt.poses.size(); ++i) gt_by_frame[gt.poses[i].frame] = i;
-  std::unordered_map<int64_t, double> time_of_frame;
-  for (const auto& p : raw_matched.poses) time_of_frame[p.frame] = p.timestamp;
-  auto gt_position = [&](int64_t frame) -> std::optional<Eigen::Vector3d> {
-    if (gt.has_timestamps && time_of_frame.count(frame)) {
-      const auto i = NearestPoseInTime(gt, time_of_frame.at(frame), max_dt);
-      if (!i) return std::nullopt;
-      return gt.poses[*i].world_from_cam.translation;
-    }
-    auto it = gt_by_frame.find(frame);
-    if (it == gt_by_frame.end()) return std::nullopt;
-    return gt.poses[it->second].world_from_cam.translation;
-  };
-  for (const LoopResult& l : loops) {
-    const auto q = gt_position(l.query_id);
-    const auto m = gt_position(l.match_id);
-    if (q && m) {
-      truth.correct.push_back((*q - *m).norm() < threshold);
-    } else {
-      truth.correct.push_back(std::nullopt);
-    }
-  }
-  return truth;
-}
-
 LoopClosing::Options LoopClosingOptionsFor(const PipelineOptions& options,
                                            bool solve_while_running) {
   LoopClosing::Options o;

@@ -107,6 +107,53 @@ TEST(CliEval, LoopPrecisionRecall) {
   EXPECT_DOUBLE_EQ(j["kitti_t_err_pct"].get<double>(), 0.0);
 }
 
+// --correct-distance: verdicts by GT distance (the benchmark's rule), as the library scores them.
+TEST(CliEval, LoopsByGtDistanceWithTrivialAndAcceptedColumns) {
+  const auto dir = FixtureDir();
+  WriteHandMadePositions(dir / "gt.txt");
+  {
+    std::ofstream out(dir / "loops.csv");
+    out << "query,match,score,accepted\n"
+        << "6,0,0.9,1\n"   // 0.5 apart, 99.5 of path between: correct
+        << "2,1,0.95,1\n"  // 10 apart (< 12), 10 of path between (< 20): trivial
+        << "7,2,0.5,0\n"   // 0.2 apart: correct, not accepted
+        << "5,1,0.8,1\n";  // 40 apart: false
+  }
+  const auto json_path = dir / "out.json";
+  const auto r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--derive-loops", "1,3",
+                         "--min-path", "20", "--correct-distance", "12", "--loops",
+                         (dir / "loops.csv").string(), "--json", json_path.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("1 trivial"), std::string::npos) << r.out;
+  const auto j = ReadJson(json_path);
+  EXPECT_EQ(j["loop_verdicts"],
+            nlohmann::json::parse(R"(["correct", "trivial", "correct", "false"])"));
+  EXPECT_EQ(j["loop_trivial"].get<int>(), 1);
+  EXPECT_EQ(j["loop_true_positives"].get<int>(), 2);
+  EXPECT_EQ(j["loop_false_positives"].get<int>(), 1);
+  EXPECT_EQ(j["loop_false_accepted"].get<int>(), 1);
+  // GT queries 6 and 7: 0.9 (6, correct), 0.8 (false): 1/2; accepted only the same.
+  EXPECT_DOUBLE_EQ(j["loop_recall_at_100p"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["loop_recall_at_100p_accepted"].get<double>(), 0.5);
+  EXPECT_EQ(j["loop_events"].get<int>(), 1);
+  EXPECT_EQ(j["loop_events_detected"].get<int>(), 1);
+
+  // Without GT loops: verdicts only; recall is not computable.
+  const auto r2 = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--correct-distance", "12",
+                          "--loops", (dir / "loops.csv").string(), "--json", json_path.string()});
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  EXPECT_TRUE(ReadJson(json_path)["loop_recall"].is_null());
+  // Bad values name their flag.
+  const auto bad = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--correct-distance", "-1",
+                           "--loops", (dir / "loops.csv").string()});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--correct-distance"), std::string::npos) << bad.err;
+  const auto no_gt =
+      RunCli({"eval", "--correct-distance", "5", "--loops", (dir / "loops.csv").string()});
+  EXPECT_EQ(no_gt.exit_code, 2);
+  EXPECT_NE(no_gt.err.find("--gt"), std::string::npos) << no_gt.err;
+}
+
 TEST(CliEval, MalformedInputExits2WithFileAndLine) {
   const auto dir = FixtureDir();
   WriteHandMadePositions(dir / "gt.txt");

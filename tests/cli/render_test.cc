@@ -141,6 +141,11 @@ TEST(RenderCli, StreetAlongKitti00) {
   EXPECT_DOUBLE_EQ(d.intrinsics.fx, 718.856);
 }
 
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
 // A fabricated run folder: GT circle, drifted raw, corrected = GT + small noise, loops (one false).
 void FabricateRun(const fs::path& dir) {
   std::ofstream gt(dir / "poses_gt.txt"), raw(dir / "poses_raw.txt"), cor(dir / "trajectory.txt");
@@ -183,11 +188,10 @@ TEST(ReportCli, WritesHtmlAndPlots) {
     EXPECT_GT(fs::file_size(dir / png), 5000u) << png;
   }
   EXPECT_NE(page.find("1 accepted loops false"), std::string::npos) << "the fabricated false loop";
-}
-
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p);
-  return std::string((std::istreambuf_iterator<char>(in)), {});
+  // Re-scored by `sparseloop eval` at another distance: the false loop (about 70 m) is correct.
+  ASSERT_EQ(RunCli({"report", dir.string(), "--false-loop-distance", "100"}).exit_code, 0);
+  EXPECT_NE(ReadText(dir / "report.html").find("0 accepted loops false (GT distance &gt; 100)"),
+            std::string::npos);
 }
 
 // The report agrees with the run: its threshold and counts are summary.json's, rejected loops are

@@ -203,6 +203,149 @@ TEST(ReadDetections, ParsesColumnsByHeaderName) {
   EXPECT_EQ(d[0].score, 0.75);
   EXPECT_EQ(d[1].query, 99);
   EXPECT_EQ(d[1].score, 0.25);
+  EXPECT_TRUE(d[0].accepted);  // no accepted column: every detection counts as accepted
+}
+
+TEST(ReadDetections, ReadsTheAcceptedColumnEmptyMeaningNot) {
+  const auto dir = test::TempDir();
+  const auto path = dir / "loops.csv";
+  std::ofstream(path) << "query,match,score,accepted\n5,1,0.5,1\n6,1,0.4,0\n7,1,0.3,\n";
+  const auto d = ReadDetections(path);
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_TRUE(d[0].accepted);
+  EXPECT_FALSE(d[1].accepted);
+  EXPECT_FALSE(d[2].accepted);  // a loop into an earlier session: not in this run's graph
+  std::ofstream(path) << "query,match,score,accepted\n5,1,0.5,yes\n";
+  try {
+    ReadDetections(path);
+    ADD_FAILURE() << "no error";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_NE(std::string(e.what()).find("accepted"), std::string::npos) << e.what();
+  }
+}
+
+// A straight line x = frame (1 m per frame), then frames 10..14 come back to x = 0..4.
+Trajectory LineThenBack(bool timestamps = false) {
+  Trajectory t;
+  t.has_timestamps = timestamps;
+  for (int i = 0; i < 15; ++i) {
+    StampedPose p;
+    p.frame = i;
+    p.timestamp = timestamps ? 100.0 + 0.1 * i : i;
+    p.world_from_cam.translation = Eigen::Vector3d(i < 10 ? i : i - 10, i < 10 ? 0.0 : 0.5, 0);
+    t.poses.push_back(p);
+  }
+  return t;
+}
+
+TEST(ClassifyLoopsByGtDistance, ByFrameIdAndByTimestamp) {
+  const Trajectory gt = LineThenBack();
+  const std::vector<LoopPair> loops = {{10, 0}, {9, 1}, {42, 1}};
+  const LoopTruth t = ClassifyLoopsByGtDistance(loops, gt, 1.0);
+  ASSERT_EQ(t.correct.size(), 3u);
+  EXPECT_EQ(t.correct[0], std::optional<bool>(true));   // 0.5 apart
+  EXPECT_EQ(t.correct[1], std::optional<bool>(false));  // 8 apart
+  EXPECT_FALSE(t.correct[2].has_value());               // no GT pose for frame 42
+  EXPECT_EQ(t.num_correct(), 1u);
+  EXPECT_EQ(t.num_false(), 1u);
+  EXPECT_EQ(t.threshold, 1.0);
+  // Default threshold: 5 % of the GT path length (capped at 10).
+  const auto path = gt.CumulativeDistances();
+  EXPECT_DOUBLE_EQ(ClassifyLoopsByGtDistance(loops, gt, 0.0).threshold, 0.05 * path.back());
+
+  // By timestamp: frame 10's time (from `frame_times`) is GT pose 14's, 4 m from frame 0; by
+  // frame id the same loop is 0.5 m apart.
+  const Trajectory gt_timed = LineThenBack(true);
+  Trajectory frame_times;
+  frame_times.has_timestamps = true;
+  for (const auto& [frame, time] : {std::pair<int64_t, double>{0, 100.0}, {10, 101.4}}) {
+    StampedPose p;
+    p.frame = frame;
+    p.timestamp = time;
+    frame_times.poses.push_back(p);
+  }
+  EXPECT_EQ(ClassifyLoopsByGtDistance({{10, 0}}, gt_timed, 1.0).correct[0],
+            std::optional<bool>(true));
+  EXPECT_EQ(ClassifyLoopsByGtDistance({{10, 0}}, gt_timed, 1.0, {&frame_times, 0.02}).correct[0],
+            std::optional<bool>(false));
+  // A frame time with no GT pose within max_dt: no verdict.
+  frame_times.poses[1].timestamp = 105.0;
+  EXPECT_FALSE(ClassifyLoopsByGtDistance({{10, 0}}, gt_timed, 1.0, {&frame_times, 0.02})
+                   .correct[0]
+                   .has_value());
+}
+
+TEST(ScoreLoopsByGtDistance, HandWorkedVerdictsRecallAndEvents) {
+  const Trajectory gt = LineThenBack();
+  // GT queries: 10..14 (each back within 1 m of a first-pass frame); one event.
+  GtLoopOptions revisit;
+  revisit.distance = 1.0;
+  revisit.min_gap = 1;
+  revisit.min_path = 5.0;
+  const auto gt_loops = DeriveGtLoops(gt, revisit);
+  ASSERT_FALSE(gt_loops.empty());
+  std::vector<Detection> d = {
+      {10, 0, 0.9, true},   // correct (0.5 m apart, 10.5 m of path between)
+      {3, 2, 0.95, true},   // 1 m apart but only 1 m of path: trivial, left out
+      {12, 7, 0.8, false},  // 5 m apart: false, not accepted
+      {13, 3, 0.7, true},   // correct
+      {14, 99, 0.6, true},  // frame 99 has no GT pose
+      {11, 8, 0.5, true},   // false, accepted
+  };
+  GtDistanceScoringOptions o;
+  o.correct_distance = 1.5;
+  o.trivial_path = 5.0;
+  const GtDistanceScore s = ScoreLoopsByGtDistance(d, gt_loops, gt, o);
+  using V = LoopVerdict;
+  EXPECT_EQ(s.verdicts, (std::vector<V>{V::kCorrect, V::kTrivial, V::kFalse, V::kCorrect, V::kNoGt,
+                                        V::kFalse}));
+  EXPECT_EQ(s.trivial, 1u);
+  EXPECT_EQ(s.no_gt, 1u);
+  EXPECT_EQ(s.all.num_detections, 4u);
+  EXPECT_EQ(s.all.true_positives, 2u);
+  EXPECT_EQ(s.all.false_positives, 2u);
+  EXPECT_EQ(s.all.num_gt_queries, 5u);
+  // Sorted by score: 10 (ok), 12 (false) -> recall at 100 % precision 1/5.
+  ASSERT_TRUE(s.all.recall_at_100p.has_value());
+  EXPECT_DOUBLE_EQ(*s.all.recall_at_100p, 0.2);
+  // Accepted only: 10, 13 (both correct), then 11 (false) -> 2/5.
+  EXPECT_EQ(s.accepted.num_detections, 3u);
+  EXPECT_EQ(s.accepted.false_positives, 1u);
+  EXPECT_DOUBLE_EQ(*s.accepted.recall_at_100p, 0.4);
+  EXPECT_EQ(s.events, 1u);
+  EXPECT_EQ(s.events_detected, 1u);
+  // Without the trivial rule the (3, 2) detection is correct but recalls no GT query.
+  o.trivial_path = 0.0;
+  const GtDistanceScore s0 = ScoreLoopsByGtDistance(d, gt_loops, gt, o);
+  EXPECT_EQ(s0.verdicts[1], V::kCorrect);
+  EXPECT_EQ(s0.trivial, 0u);
+  EXPECT_DOUBLE_EQ(*s0.all.recall_at_100p, 0.2);
+  // No accepted correct detection: the event is not detected.
+  for (auto& x : d) x.accepted = false;
+  EXPECT_EQ(ScoreLoopsByGtDistance(d, gt_loops, gt, o).events_detected, 0u);
+  o.correct_distance = 0.0;
+  EXPECT_THROW(ScoreLoopsByGtDistance(d, gt_loops, gt, o), std::invalid_argument);
+}
+
+TEST(ScoreLoopsByGtDistance, TwoEventsSplitByTheEventGap) {
+  const std::vector<LoopPair> gt_loops = {{100, 1}, {105, 2}, {130, 3}, {131, 4}};
+  Trajectory gt;
+  for (int i = 0; i < 140; ++i) {
+    StampedPose p;
+    p.frame = i;
+    gt.poses.push_back(p);  // every frame at the origin: every detection is correct
+  }
+  GtDistanceScoringOptions o;
+  o.correct_distance = 1.0;
+  o.event_gap = 10;
+  o.event_margin = 2;
+  // 133 is within the margin of the second event [130, 131]; 97 is not within 2 of [100, 105].
+  const auto s = ScoreLoopsByGtDistance({{133, 3, 1.0, true}, {97, 1, 0.9, true}}, gt_loops, gt, o);
+  EXPECT_EQ(s.events, 2u);
+  EXPECT_EQ(s.events_detected, 1u);
+  o.event_gap = 30;  // one event [100, 131]
+  EXPECT_EQ(ScoreLoopsByGtDistance({{97, 1, 1.0, true}}, gt_loops, gt, o).events, 1u);
 }
 
 TEST(ReadDetections, MalformedFilesNameFileAndLine) {

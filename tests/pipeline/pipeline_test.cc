@@ -66,26 +66,6 @@ TEST(MatchRawPoses, ByTimestampForTum) {
                FileError);
 }
 
-TEST(ClassifyLoops, ByGtDistance) {
-  Trajectory gt = MakeRaw(10, false);
-  gt.poses[9].world_from_cam.translation = Eigen::Vector3d(0.5, 0, 0);  // back near frame 0
-  const Trajectory raw = MakeRaw(10, false);
-  std::vector<LoopResult> loops(3);
-  loops[0].query_id = 9;
-  loops[0].match_id = 0;  // 0.5 apart: correct
-  loops[1].query_id = 8;
-  loops[1].match_id = 1;  // 7 apart: false
-  loops[2].query_id = 42;
-  loops[2].match_id = 1;  // no GT for frame 42
-  const LoopTruth t = ClassifyLoopsAgainstGt(loops, gt, raw, 1.0);
-  ASSERT_EQ(t.correct.size(), 3u);
-  EXPECT_EQ(t.correct[0], std::optional<bool>(true));
-  EXPECT_EQ(t.correct[1], std::optional<bool>(false));
-  EXPECT_FALSE(t.correct[2].has_value());
-  EXPECT_EQ(t.num_correct(), 1u);
-  EXPECT_EQ(t.num_false(), 1u);
-}
-
 TEST(MappedPixels, ReadsAndRejectsMalformedLines) {
   const auto dir = test::TempDir();
   std::ofstream(dir / "ok.txt") << "# u v depth\n10.5 20 3.25\n11 21 -1\n";

@@ -21,5 +21,10 @@ nlohmann::json ToJson(const TrajectoryEvaluation& evaluation);
 // Adds loop_precision, loop_recall, loop_recall_at_100p, loop_true_positives,
 // loop_false_positives and a nested "loops" object (or nulls when `loops` is nullptr).
 void AddLoopKeys(nlohmann::json& out, const LoopPrResult* loops);
+// Loops scored by GT distance: AddLoopKeys over the correct and false detections, plus
+// loop_false_accepted, loop_recall_at_100p_accepted, loop_trivial, loop_no_gt, loop_events,
+// loop_events_detected, "loops_accepted" (as "loops", accepted detections only) and
+// "loop_verdicts" (one of correct / false / trivial / no_gt per detection, input order).
+void AddLoopKeys(nlohmann::json& out, const GtDistanceScore& score);
 
 }  // namespace sparseloop

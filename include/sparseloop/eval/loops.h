@@ -17,6 +17,16 @@
 //    keep detections with score >= s) one point with the precision and recall of the kept set.
 //  recall_at_100p = the largest recall over curve points whose precision is exactly 1; 0 when
 //    no such point exists (e.g. the top-scored detection is wrong); nullopt without GT pairs.
+//
+// Scoring by GT distance (ScoreLoopsByGtDistance, the rule of `run`'s loops.csv "correct" column
+// and of scripts/benchmark): a detection is CORRECT when the GT positions of its two frames are
+// closer than correct_distance, TRIVIAL when it is correct but the GT path between the two frames
+// is shorter than trivial_path (the same stretch seen moments ago: neither a loop nor an error,
+// left out of every count), FALSE otherwise, NO_GT when a frame has no GT pose. Precision, recall
+// and the P/R curve are those above over the correct and false detections, a correct detection
+// recalling its query when the query is a GT query. GT events: the GT queries grouped into runs
+// whose consecutive queries are at most event_gap frames apart; an event is detected when an
+// accepted correct detection has its query within event_margin frames of the run.
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -44,13 +54,15 @@ struct GtLoopOptions {
 std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& options = {});
 
 struct Detection {
-  int64_t query = 0;   // later frame id
-  int64_t match = 0;   // earlier frame id it was matched to
-  double score = 0.0;  // higher = more confident
+  int64_t query = 0;     // later frame id
+  int64_t match = 0;     // earlier frame id it was matched to
+  double score = 0.0;    // higher = more confident
+  bool accepted = true;  // kept by the pose graph (loops.csv's "accepted" column)
 };
 
 // Reads the detector's loops.csv: a header line naming comma-separated columns, which must include
-// "query", "match" and "score" (any order, other columns ignored), then one detection per line.
+// "query", "match" and "score" (any order; "accepted" is read when present: 1 accepted, 0 or
+// empty not (a loop into an earlier session); other columns ignored), then one detection per line.
 // Blank lines are skipped. Throws FileError(path, line, expected, got) for a missing file, missing
 // header columns, a wrong field count or an unparsable number.
 std::vector<Detection> ReadDetections(const std::filesystem::path& path);
@@ -84,5 +96,53 @@ struct LoopPrResult {
 
 LoopPrResult EvaluateLoops(const std::vector<Detection>& detections,
                            const std::vector<LoopPair>& gt, const LoopEvalOptions& options = {});
+
+// The GT pose of a frame id: by timestamp when `frame_times` has a pose with that frame id and
+// the GT has timestamps (the GT pose nearest to it within max_dt), else the GT pose with that
+// frame id. Without frame_times (nullptr): by frame id.
+struct GtFrameLookup {
+  const Trajectory* frame_times = nullptr;  // e.g. the raw poses matched to the frames
+  double max_dt = 0.02;                     // seconds
+};
+
+// Per-loop verdict by GT distance alone: correct when the two frames' GT positions are closer
+// than `threshold` (GT units); nullopt when a frame has no GT pose. threshold <= 0: 5 % of the
+// GT path length, capped at 10 GT units (the default of `run --gt-loop-distance`).
+struct LoopTruth {
+  double threshold = 0.0;                    // GT units, the one used
+  std::vector<std::optional<bool>> correct;  // per loop
+  size_t num_correct() const;
+  size_t num_false() const;
+};
+LoopTruth ClassifyLoopsByGtDistance(const std::vector<LoopPair>& loops, const Trajectory& gt,
+                                    double threshold, const GtFrameLookup& lookup = {});
+
+struct GtDistanceScoringOptions {
+  double correct_distance = 10.0;  // GT units, > 0
+  double trivial_path = 0.0;       // GT units, >= 0; 0: nothing is trivial
+  int64_t event_gap = 10;          // frames, >= 1
+  int64_t event_margin = 2;        // frames, >= 0
+  GtFrameLookup lookup;
+  void Check() const;
+};
+
+enum class LoopVerdict { kCorrect, kFalse, kTrivial, kNoGt };
+const char* ToString(LoopVerdict verdict);  // "correct", "false", "trivial", "no_gt"
+
+struct GtDistanceScore {
+  std::vector<LoopVerdict> verdicts;  // per input detection, input order
+  LoopPrResult all;       // over the correct and false detections (its `correct`: theirs, in order)
+  LoopPrResult accepted;  // the same over the accepted ones
+  size_t trivial = 0;
+  size_t no_gt = 0;
+  size_t events = 0;           // GT events (runs of GT queries)
+  size_t events_detected = 0;  // with an accepted correct detection
+};
+
+// `gt_loops` define the GT queries (DeriveGtLoops, or a pairs file); `gt` gives the positions and
+// the path between frames (file order).
+GtDistanceScore ScoreLoopsByGtDistance(const std::vector<Detection>& detections,
+                                       const std::vector<LoopPair>& gt_loops, const Trajectory& gt,
+                                       const GtDistanceScoringOptions& options);
 
 }  // namespace sparseloop

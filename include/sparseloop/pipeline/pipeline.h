@@ -123,19 +123,7 @@ PipelineResult RunDetection(const Dataset& dataset, const std::optional<Trajecto
                             const PipelineOptions& options,
                             const PipelineProgressCallback& progress = {});
 
-// Ground-truth verdict on detected loops: a loop is correct when the GT positions of its two
-// frames are closer than `threshold` (GT units). GT poses are found by timestamp when the GT has
-// timestamps (nearest within max_dt of the raw frame's time), else by frame index.
-struct LoopTruth {
-  double threshold = 0.0;                    // GT units
-  std::vector<std::optional<bool>> correct;  // per loop; nullopt when a frame has no GT pose
-  size_t num_correct() const;
-  size_t num_false() const;
-};
-// threshold <= 0: 5% of the GT path length, capped at 10 GT units.
-LoopTruth ClassifyLoopsAgainstGt(const std::vector<LoopResult>& loops, const Trajectory& gt,
-                                 const Trajectory& raw_matched, double threshold,
-                                 double max_dt = 0.02);
+// Loops against GT (LoopTruth, ClassifyLoopsByGtDistance): eval/loops.h.
 
 // MakeLoopConstraint (the loop edge for a detected loop): runtime/loop_edge.h.
 
