@@ -15,7 +15,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/trajectory_io.h"
-#include "sparseloop/synthetic/sequence.h"
+#include "sparseloop/pipeline/kitti_sequence.h"
 #include "sparseloop/synthetic/texture.h"
 #include "sparseloop/synthetic/worlds.h"
 
@@ -39,7 +39,7 @@ struct RenderFlags {
   int frames = 0, threads = 2, kitti_sequence = -1, start = 0, step = 1;
   uint64_t seed = 1;
   syn::FlightPlanOptions plan;
-  syn::SequenceOptions seq;
+  SequenceOptions seq;
   bool no_photometric = false, no_mapped = false, poses_only = false;
   double drift_scale = 1.0, photometric_scale = 1.0;
 };
@@ -106,7 +106,7 @@ void AddRenderFlags(CLI::App& app, RenderFlags* f) {
 // The sequence and plan options from the flags (seeds, drift and photometric scales), checked;
 // an invalid value names its flag.
 void ApplyRenderFlags(RenderFlags* f) {
-  syn::SequenceOptions& seq = f->seq;
+  SequenceOptions& seq = f->seq;
   seq.num_threads = f->threads;
   seq.photometric_drift = !f->no_photometric;
   seq.write_mapped = !f->no_mapped;
@@ -265,7 +265,7 @@ int RunRender(int argc, char** argv) {
     }
   };
   const auto result =
-      syn::WriteKittiSequence(f.out_dir, scene.world, scene.camera, gt, f.seq, raw, progress);
+      WriteKittiSequence(f.out_dir, scene.world, scene.camera, gt, f.seq, raw, progress);
   WriteRenderJson(f, gt.size());
   std::cout << fmt::format("wrote {} frames ({}x{}) to {} in {:.1f} s ({:.1f} frames/s)\n",
                            result.frames, scene.camera.width, scene.camera.height, f.out_dir,

@@ -1,4 +1,4 @@
-#include "sparseloop/synthetic/sequence.h"
+#include "sparseloop/pipeline/kitti_sequence.h"
 
 #include <atomic>
 #include <exception>
@@ -17,9 +17,13 @@
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/trajectory_io.h"
 
-namespace sparseloop::synthetic {
+namespace sparseloop {
 
 namespace fs = std::filesystem;
+using synthetic::Photometric;
+using synthetic::RenderedFrame;
+using synthetic::RenderOptions;
+using synthetic::World;
 
 void SequenceOptions::Check() const {
   render.Check();
@@ -66,10 +70,11 @@ namespace {
 void WriteFrameFiles(const fs::path& out_dir, const World& world, const CameraIntrinsics& camera,
                      const Trajectory& gt, const SequenceOptions& options,
                      const RenderOptions& render, double scale, int64_t i) {
-  const Photometric photometric =
-      options.photometric_drift ? PhotometricForFrame(i, options.photometric) : Photometric{};
-  RenderedFrame frame = RenderFrame(world, camera, gt.poses[i].world_from_cam, render, photometric,
-                                    static_cast<uint64_t>(i));
+  const Photometric photometric = options.photometric_drift
+                                      ? synthetic::PhotometricForFrame(i, options.photometric)
+                                      : Photometric{};
+  RenderedFrame frame = synthetic::RenderFrame(world, camera, gt.poses[i].world_from_cam, render,
+                                               photometric, static_cast<uint64_t>(i));
   const std::string stem = fmt::format("{:06d}", i);
   cv::Mat img(frame.image.height, frame.image.width, CV_8UC1, frame.image.pixels.data());
   WritePng(out_dir / "image_0" / (stem + ".png"), img, options.png_compression);
@@ -82,7 +87,8 @@ void WriteFrameFiles(const fs::path& out_dir, const World& world, const CameraIn
     WritePng(out_dir / "depth_0" / (stem + ".png"), depth16, options.png_compression);
   }
   if (options.write_mapped) {
-    const auto pixels = SelectMappedPixels(frame.image, frame.depth, scale, options.mapped);
+    const auto pixels =
+        synthetic::SelectMappedPixels(frame.image, frame.depth, scale, options.mapped);
     WriteFileAtomically(out_dir / "mapped" / (stem + ".txt"), [&](std::ostream& out) {
       out << "# u v depth_raw\n";
       for (const auto& p : pixels) out << fmt::format("{:.1f} {:.1f} {:.6g}\n", p.u, p.v, p.depth);
@@ -155,9 +161,9 @@ SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
   std::vector<double> scale;
   if (raw) {
     raw_traj = *raw;
-    scale = LocalScale(gt, raw_traj);
+    scale = synthetic::LocalScale(gt, raw_traj);
   } else {
-    DriftResult drift = SimulateDrift(gt, options.drift);
+    synthetic::DriftResult drift = synthetic::SimulateDrift(gt, options.drift);
     raw_traj = std::move(drift.raw);
     scale = std::move(drift.scale);
   }
@@ -185,4 +191,4 @@ SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
   return result;
 }
 
-}  // namespace sparseloop::synthetic
+}  // namespace sparseloop

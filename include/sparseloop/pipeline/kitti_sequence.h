@@ -1,6 +1,6 @@
 #pragma once
-// Renders a whole sequence into the KITTI odometry folder layout (read back by the io module's
-// "kitti:DIR" loader). See docs/FORMATS.md, "Synthetic sequences":
+// A rendered sequence (module synthetic) written into the KITTI odometry folder layout (read back
+// by the io module's "kitti:DIR" loader). See docs/FORMATS.md, "Synthetic sequences":
 //   DIR/image_0/NNNNNN.png   8-bit grayscale frames
 //   DIR/times.txt            one timestamp (s) per frame
 //   DIR/calib.txt            P0..P3 (P1/P3 with the KITTI stereo baseline 0.54 m, for tools that
@@ -21,15 +21,15 @@
 #include "sparseloop/synthetic/vslam_sim.h"
 #include "sparseloop/synthetic/world.h"
 
-namespace sparseloop::synthetic {
+namespace sparseloop {
 
 struct SequenceOptions {
-  RenderOptions render;                 // per-frame rendering (its num_threads is ignored)
-  bool photometric_drift = true;        // exposure/gamma change along the sequence
-  PhotometricDriftOptions photometric;  // used when photometric_drift
-  DriftOptions drift;                   // raw trajectory simulation (when no raw is given)
-  bool write_mapped = true;             // write mapped/NNNNNN.txt
-  MappedPixelOptions mapped;
+  synthetic::RenderOptions render;  // per-frame rendering (its num_threads is ignored)
+  bool photometric_drift = true;    // exposure/gamma change along the sequence
+  synthetic::PhotometricDriftOptions photometric;  // used when photometric_drift
+  synthetic::DriftOptions drift;  // raw trajectory simulation (when no raw is given)
+  bool write_mapped = true;       // write mapped/NNNNNN.txt
+  synthetic::MappedPixelOptions mapped;
   bool write_depth = false;  // write depth_0/NNNNNN.png
   int num_threads = 2;       // frames rendered in parallel (output independent of it)
   int png_compression = 1;   // 0..9, zlib level of the PNGs (1: fast)
@@ -48,13 +48,13 @@ struct SequenceResult {
 // estimate already associated to `gt` by index (same size); otherwise SimulateDrift(gt) is used.
 // `progress(done, total)` is called after each frame (serialised, from any worker thread).
 // Creates `out_dir` if needed; every file is written atomically. Throws FileError on I/O failure.
-SequenceResult WriteKittiSequence(const std::filesystem::path& out_dir, const World& world,
-                                  const CameraIntrinsics& camera, const Trajectory& gt,
-                                  const SequenceOptions& options,
+SequenceResult WriteKittiSequence(const std::filesystem::path& out_dir,
+                                  const synthetic::World& world, const CameraIntrinsics& camera,
+                                  const Trajectory& gt, const SequenceOptions& options,
                                   const std::optional<Trajectory>& raw = std::nullopt,
                                   const std::function<void(int64_t, int64_t)>& progress = {});
 
 // Writes calib.txt with P0..P3 for `camera` (P1/P3 with baseline 0.54 m).
 void WriteKittiCalib(const std::filesystem::path& path, const CameraIntrinsics& camera);
 
-}  // namespace sparseloop::synthetic
+}  // namespace sparseloop

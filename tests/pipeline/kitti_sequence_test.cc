@@ -5,22 +5,31 @@
 
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
-#include "sparseloop/synthetic/sequence.h"
+#include "sparseloop/pipeline/kitti_sequence.h"
 #include "sparseloop/synthetic/worlds.h"
 #include "test_util.h"
 
 namespace sparseloop::synthetic {
 namespace {
 
+// An aerial world of `textures` procedural textures of `size` pixels.
+World SmallAerialWorld(int textures, int size) {
+  ProceduralTextureOptions tex;
+  tex.count = textures;
+  tex.size = size;
+  return MakeAerialWorld(MakeProceduralTextures(tex));
+}
+
+Trajectory Flight(int frames) {
+  FlightPlanOptions plan;
+  plan.frames = frames;
+  return MakeFlightTrajectory(plan);
+}
+
 TEST(WriteKittiSequence, KittiLoaderReadsBackImagesPosesAndCalib) {
   const auto dir = test::TempDir() / "seq";
-  ProceduralTextureOptions tex;
-  tex.count = 3;
-  tex.size = 128;
-  const World world = MakeAerialWorld(MakeProceduralTextures(tex));
-  FlightPlanOptions plan;
-  plan.frames = 12;
-  const Trajectory gt = MakeFlightTrajectory(plan);
+  const World world = SmallAerialWorld(3, 128);
+  const Trajectory gt = Flight(12);
   CameraIntrinsics cam = DefaultAerialCamera();
   cam.width = 160, cam.height = 120, cam.cx = 79.5, cam.cy = 59.5, cam.fx = cam.fy = 125.0;
   SequenceOptions o;
@@ -77,13 +86,8 @@ TEST(WriteKittiSequence, KittiLoaderReadsBackImagesPosesAndCalib) {
 
 TEST(WriteKittiSequence, RejectsRawOfWrongLength) {
   const auto dir = test::TempDir();
-  ProceduralTextureOptions tex;
-  tex.count = 1;
-  tex.size = 32;
-  const World world = MakeAerialWorld(MakeProceduralTextures(tex));
-  FlightPlanOptions plan;
-  plan.frames = 5;
-  const Trajectory gt = MakeFlightTrajectory(plan);
+  const World world = SmallAerialWorld(1, 32);
+  const Trajectory gt = Flight(5);
   Trajectory raw = gt;
   raw.poses.pop_back();
   EXPECT_THROW(WriteKittiSequence(dir, world, DefaultAerialCamera(), gt, {}, raw),
