@@ -79,7 +79,7 @@ TEST(WriteKittiSequence, KittiLoaderReadsBackImagesPosesAndCalib) {
   int count = 0;
   while (mapped >> u >> v >> z) {
     ++count;
-    EXPECT_GT(z, 0.5 * plan.altitude * 0.5);
+    EXPECT_GT(z, 0.5 * FlightPlanOptions().altitude * 0.5);
   }
   EXPECT_GT(count, 10);
 }
