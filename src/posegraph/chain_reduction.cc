@@ -122,6 +122,94 @@ void BreakRing(ReducedChain* chain, ChainReduction* out, std::vector<bool>* in_c
   chain->step_reversed.pop_back();
 }
 
+// Walks chains from kept vertices, one edge at a time, and records them in a ChainReduction.
+class ChainWalker {
+ public:
+  // Where the next chain starts when a walk was cut at max_chain_length.
+  struct Next {
+    bool more = false;
+    size_t vertex = 0, edge = 0;
+  };
+
+  ChainWalker(const std::vector<PoseGraphEdge>& edges,
+              const std::vector<std::array<size_t, 2>>& ends, const Incidence& graph,
+              const std::vector<bool>& diagonal, int max_chain_length, ChainReduction* out)
+      : edges_(edges),
+        ends_(ends),
+        graph_(graph),
+        diagonal_(diagonal),
+        max_chain_length_(max_chain_length),
+        out_(out),
+        edge_done_(edges.size(), false),
+        in_chain_(graph.offset.size() - 1, false) {}
+
+  bool edge_done(size_t e) const { return edge_done_[e]; }
+  bool in_chain(size_t v) const { return in_chain_[v]; }
+
+  // Walks one chain from kept vertex `start` along `first_edge`. When the chain is cut at
+  // max_chain_length, returns the cut vertex and its other edge (the next chain to walk).
+  Next Walk(size_t start, size_t first_edge) {
+    edge_done_[first_edge] = true;
+    if (out_->kept[OtherEnd(first_edge, start)]) {
+      out_->direct_edges.push_back(first_edge);
+      return {};
+    }
+    Next next_chain;
+    ReducedChain chain;
+    chain.from = start;
+    size_t u = start, e = first_edge;
+    for (;;) {
+      AddStep(u, e, &chain);
+      const size_t w = OtherEnd(e, u);
+      if (out_->kept[w]) {
+        chain.to = w;
+        break;
+      }
+      if (static_cast<int>(chain.steps.size()) == max_chain_length_) {
+        out_->kept[w] = true;  // cut the chain here; w starts the next one
+        next_chain = {true, w, OtherEdge(w, e)};
+        chain.to = w;
+        break;
+      }
+      chain.interior.push_back(w);
+      in_chain_[w] = true;
+      const size_t next = OtherEdge(w, e);
+      edge_done_[next] = true;
+      u = w;
+      e = next;
+    }
+    if (chain.to == chain.from) BreakRing(&chain, out_, &in_chain_);
+    ComposeChain(edges_, diagonal_, &chain);
+    out_->chains.push_back(std::move(chain));
+    return next_chain;
+  }
+
+ private:
+  size_t OtherEnd(size_t e, size_t v) const { return ends_[e][0] == v ? ends_[e][1] : ends_[e][0]; }
+  // The other edge of a chain vertex (exactly two edges).
+  size_t OtherEdge(size_t v, size_t e) const {
+    const size_t first = graph_.incident[graph_.offset[v]];
+    return first == e ? graph_.incident[graph_.offset[v] + 1] : first;
+  }
+  // The step along e leaving u: the measurement, inverted when e points into u.
+  void AddStep(size_t u, size_t e, ReducedChain* chain) const {
+    const bool reversed = ends_[e][0] != u;
+    const S3 measured = ToJetSim3(edges_[e].from_from_to);
+    chain->steps.push_back(reversed ? measured.Inverse() : measured);
+    chain->step_edges.push_back(e);
+    chain->step_reversed.push_back(reversed);
+  }
+
+  const std::vector<PoseGraphEdge>& edges_;
+  const std::vector<std::array<size_t, 2>>& ends_;
+  const Incidence& graph_;
+  const std::vector<bool>& diagonal_;
+  const int max_chain_length_;
+  ChainReduction* out_;
+  std::vector<bool> edge_done_;
+  std::vector<bool> in_chain_;
+};
+
 }  // namespace
 
 ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
@@ -131,19 +219,9 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
   SL_CHECK_MSG(edges.size() == ends.size(), "edges ({}) and ends ({}) differ in size", edges.size(),
                ends.size());
   const size_t n = must_keep.size();
-  const size_t num_edges = edges.size();
   const Incidence graph = BuildIncidence(ends, n);
-  const std::vector<size_t>& offset = graph.offset;
-  const std::vector<size_t>& incident = graph.incident;
-  const auto other_end = [&](size_t e, size_t v) {
-    return ends[e][0] == v ? ends[e][1] : ends[e][0];
-  };
-  // The other edge of a chain vertex (exactly two edges).
-  const auto other_edge = [&](size_t v, size_t e) {
-    return incident[offset[v]] == e ? incident[offset[v] + 1] : incident[offset[v]];
-  };
-  std::vector<bool> diagonal(num_edges), chainable(num_edges);
-  for (size_t e = 0; e < num_edges; ++e) {
+  std::vector<bool> diagonal(edges.size()), chainable(edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) {
     diagonal[e] = IsDiagonal(edges[e].information);
     chainable[e] = Chainable(edges[e].information, diagonal[e]);
   }
@@ -151,73 +229,25 @@ ChainReduction ReduceChains(const std::vector<PoseGraphEdge>& edges,
   ChainReduction out;
   out.kept = std::move(must_keep);
   KeepNonChainVertices(graph, ends, chainable, &out.kept);
-
-  std::vector<bool> edge_done(num_edges, false);
-  std::vector<bool> in_chain(n, false);
+  ChainWalker walker(edges, ends, graph, diagonal, max_chain_length, &out);
   std::vector<size_t> queue;
   for (size_t v = 0; v < n; ++v)
     if (out.kept[v]) queue.push_back(v);
-  // Walks one chain from kept vertex `start` along `first_edge`. When the chain is cut at
-  // max_chain_length, returns the cut vertex and its other edge (the next chain to walk).
-  struct Next {
-    bool more = false;
-    size_t vertex = 0, edge = 0;
-  };
-  const auto walk = [&](size_t start, size_t first_edge) -> Next {
-    edge_done[first_edge] = true;
-    if (out.kept[other_end(first_edge, start)]) {
-      out.direct_edges.push_back(first_edge);
-      return {};
-    }
-    Next next_chain;
-    ReducedChain chain;
-    chain.from = start;
-    size_t u = start, e = first_edge;
-    for (;;) {
-      // The step along e leaving u: the measurement, inverted when e points into u.
-      const bool reversed = ends[e][0] != u;
-      const S3 measured = ToJetSim3(edges[e].from_from_to);
-      chain.steps.push_back(reversed ? measured.Inverse() : measured);
-      chain.step_edges.push_back(e);
-      chain.step_reversed.push_back(reversed);
-      const size_t w = other_end(e, u);
-      if (out.kept[w]) {
-        chain.to = w;
-        break;
-      }
-      if (static_cast<int>(chain.steps.size()) == max_chain_length) {
-        out.kept[w] = true;  // cut the chain here; w starts the next one
-        next_chain = {true, w, other_edge(w, e)};
-        chain.to = w;
-        break;
-      }
-      chain.interior.push_back(w);
-      in_chain[w] = true;
-      const size_t next = other_edge(w, e);
-      edge_done[next] = true;
-      u = w;
-      e = next;
-    }
-    if (chain.to == chain.from) BreakRing(&chain, &out, &in_chain);
-    ComposeChain(edges, diagonal, &chain);
-    out.chains.push_back(std::move(chain));
-    return next_chain;
-  };
-
   for (;;) {
     for (size_t qi = 0; qi < queue.size(); ++qi) {
       const size_t a = queue[qi];
-      for (size_t j = offset[a]; j < offset[a + 1]; ++j) {
-        if (edge_done[incident[j]]) continue;
-        for (Next next = walk(a, incident[j]); next.more && !edge_done[next.edge];) {
-          next = walk(next.vertex, next.edge);
+      for (size_t j = graph.offset[a]; j < graph.offset[a + 1]; ++j) {
+        if (walker.edge_done(graph.incident[j])) continue;
+        for (auto next = walker.Walk(a, graph.incident[j]);
+             next.more && !walker.edge_done(next.edge);) {
+          next = walker.Walk(next.vertex, next.edge);
         }
       }
     }
     // Chain vertices no walk reached form rings without a kept vertex: keep one of each.
     queue.clear();
     for (size_t v = 0; v < n && queue.empty(); ++v) {
-      if (!out.kept[v] && !in_chain[v]) {
+      if (!out.kept[v] && !walker.in_chain(v)) {
         out.kept[v] = true;
         queue.push_back(v);
       }
