@@ -121,6 +121,32 @@ TEST(CliDetect, SmallKChangesBytesPerKeyframe) {
   EXPECT_EQ(summary["config"]["features"]["max_features"].get<int>(), 15);
 }
 
+// A rendered folder holds poses.txt (its ground truth). Without --poses, `detect` must not search
+// with it as if a vSLAM had estimated it (#21): no raw poses, the global search, said on stderr.
+TEST(CliDetect, FolderGroundTruthIsNeverUsedAsRawPoses) {
+  const std::filesystem::path& seq = RenderedLoopSequence();
+  ASSERT_FALSE(seq.empty());
+  ASSERT_TRUE(std::filesystem::exists(seq / "poses.txt"));
+  const auto out = TempDir();
+  const CliResult r =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "-K", "50", "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("no --poses"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("ground truth is not used as raw poses"), std::string::npos) << r.err;
+  const auto summary = nlohmann::json::parse(ReadAll(out / "summary.json"));
+  EXPECT_EQ(summary["search"].get<std::string>(), "global");
+  EXPECT_FALSE(summary.contains("poses_file")) << summary.dump();
+  // With --poses the same folder is searched with the raw poses.
+  const auto out2 = TempDir() / "with_poses";
+  const CliResult r2 =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "-K", "50", "--poses",
+              (seq / "poses_raw.txt").string(), "--out", out2.string()});
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  const auto summary2 = nlohmann::json::parse(ReadAll(out2 / "summary.json"));
+  EXPECT_EQ(summary2["poses_file"].get<std::string>(), (seq / "poses_raw.txt").string());
+  EXPECT_NE(summary2["search"].get<std::string>(), "global");
+}
+
 TEST(CliDetect, PaperSearchWithoutPosesExits2) {
   SL_REQUIRE_DATA("castle_p30_768");
   const auto out = TempDir();
