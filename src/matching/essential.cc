@@ -194,15 +194,30 @@ void FinishTwoView(const TwoViewData& d, const TwoViewModel& mdl, std::vector<ui
   result->pose_kind = RelativePoseKind::kSE3UnitTranslation;
 }
 
+int IterationsToFindPassingModel(const VerifyOptions& options, size_t num_matches,
+                                 int sample_size) {
+  const double n = static_cast<double>(num_matches);
+  const double floor =
+      std::max<double>(options.min_inliers, std::ceil(options.min_inlier_ratio * n));
+  if (floor >= n) return 1;  // every match must be an inlier: any sample of them finds it
+  double all_inliers = 1.0;  // P(a sample is all inliers of a model with `floor` inliers)
+  for (int i = 0; i < sample_size; ++i) all_inliers *= std::max(0.0, floor - i) / (n - i);
+  if (all_inliers <= 0.0) return options.max_iterations;
+  const double iterations =
+      std::ceil(std::log(1.0 - options.confidence) / std::log(1.0 - all_inliers));
+  return static_cast<int>(std::clamp(iterations, 1.0, double(options.max_iterations)));
+}
+
 void VerifyEssential(const TwoViewData& data, size_t num_matches, const VerifyOptions& options,
                      VerificationResult* result) {
   result->method = VerificationMethod::kEssential;
   if (num_matches < 5) return;
   cv::Mat mask;
   const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
-  cv::Mat e =
-      cv::findEssentialMat(data.pts_match, data.pts_query, eye, cv::RANSAC, options.confidence,
-                           data.threshold, options.max_iterations, mask);
+  constexpr int kFivePoint = 5;  // findEssentialMat's sample
+  cv::Mat e = cv::findEssentialMat(
+      data.pts_match, data.pts_query, eye, cv::RANSAC, options.confidence, data.threshold,
+      IterationsToFindPassingModel(options, num_matches, kFivePoint), mask);
   if (e.empty() || e.rows < 3 || mask.empty()) return;
   cv::Mat r_cv, t_cv;
   // recoverPose keeps the inliers in front of both cameras; x_query = R x_match + t.

@@ -41,9 +41,11 @@ void VerifyPnp(const KeyframeRecord& query, const KeyframeRecord& match,
   if (static_cast<int>(object.size()) < std::max(6, options.min_inliers)) return;
   cv::Mat rvec, tvec, inl;
   const cv::Mat eye = cv::Mat::eye(3, 3, CV_64F);
-  const bool ok = cv::solvePnPRansac(object, image, eye, cv::noArray(), rvec, tvec, false,
-                                     options.max_iterations, threshold, options.confidence, inl,
-                                     cv::SOLVEPNP_EPNP);
+  constexpr int kEpnpSample = 5;  // solvePnPRansac's sample for EPnP
+  const int iterations = IterationsToFindPassingModel(options, object.size(), kEpnpSample);
+  const bool ok =
+      cv::solvePnPRansac(object, image, eye, cv::noArray(), rvec, tvec, false, iterations,
+                         threshold, options.confidence, inl, cv::SOLVEPNP_EPNP);
   if (!ok || inl.rows < 4) return;
   std::vector<int> inliers(inl.rows);
   for (int r = 0; r < inl.rows; ++r) inliers[r] = inl.at<int>(r);

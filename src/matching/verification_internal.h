@@ -58,6 +58,14 @@ void FinishTwoView(const TwoViewData& d, const TwoViewModel& mdl, std::vector<ui
 void VerifyEssential(const TwoViewData& data, size_t num_matches, const VerifyOptions& options,
                      VerificationResult* result);
 
+// RANSAC iterations after which a model with the fewest inliers a pair needs to pass
+// (options.min_inliers, min_inlier_ratio) has been found with probability options.confidence, if
+// one exists: the chance that a sample of `sample_size` of the `num_matches` points is all
+// inliers of it is prod_i (m - i) / (n - i). A weaker model fails anyway, so searching longer
+// for one only costs time (false pairs ran all max_iterations: the verification tail of #19).
+// Between 1 and options.max_iterations.
+int IterationsToFindPassingModel(const VerifyOptions& options, size_t num_matches, int sample_size);
+
 // VerifyOptions' acceptance of a pose with `inliers` of `num_matches` matches.
 inline bool Accepted(const VerifyOptions& options, int inliers, size_t num_matches) {
   return inliers >= options.min_inliers &&

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "matching/verification_internal.h"
 #include "sparseloop/matching/descriptor_matching.h"
 #include "sparseloop/matching/geometric_verification.h"
 #include "sparseloop/matching/sim3_solver.h"
@@ -317,6 +318,45 @@ TEST(Verification, RandomCorrespondencesFail) {
   const auto v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
   EXPECT_FALSE(v.success);
   EXPECT_LT(v.inliers, VerifyOptions{}.min_inliers);
+}
+
+// RANSAC stops once a model with the fewest inliers that can pass would have been found
+// (probability `confidence`): hand-worked counts.
+TEST(Verification, IterationsToFindPassingModelHandWorked) {
+  VerifyOptions o;  // confidence 0.999, max_iterations 1000
+  o.min_inliers = 8;
+  // n = 10, floor 8, 5-point: P(all-inlier sample) = 8*7*6*5*4 / (10*9*8*7*6) = 2/9;
+  // log(0.001) / log(7/9) = 27.49 -> 28.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 10, 5), 28);
+  // n = 15: 6720 / 360360 -> 366.97 -> 367.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), 367);
+  // Every match must be an inlier: one sample.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 8, 5), 1);
+  // Many matches, a low floor: the cap.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 1000, 5), 1000);
+  // The ratio floor counts when it is higher: 0.8 * 10 = 8 with min_inliers 6.
+  o.min_inliers = 6;
+  o.min_inlier_ratio = 0.8;
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 10, 5), 28);
+}
+
+// The shortened search finds what the full search finds: 15 matches, 8 of them true, over 100
+// scenes. With min_inliers 8 RANSAC stops after 367 iterations; with min_inliers 5 it runs all
+// 1000 (the search before the cap), and its results are then held to the floor of 8.
+TEST(Verification, PairAtTheInlierFloorIsFoundAsOftenWithFewerIterations) {
+  int capped = 0, full = 0;
+  for (uint64_t seed = 0; seed < 100; ++seed) {
+    const Scene s = MakeScene(1000 + seed, 15, 7, false, false);
+    VerifyOptions o;
+    o.seed = seed;
+    o.min_inliers = 8;
+    capped += VerifyPair(s.query, s.match, s.matches, o).success;
+    o.min_inliers = 5;
+    ASSERT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), o.max_iterations);
+    full += VerifyPair(s.query, s.match, s.matches, o).inliers >= 8;
+  }
+  EXPECT_GE(full, 70);  // the scene is verifiable at all
+  EXPECT_GE(capped, full - 2);
 }
 
 TEST(Verification, FundamentalCountsInliersWithoutPose) {
