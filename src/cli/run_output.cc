@@ -304,11 +304,15 @@ std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
 
 void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
   WriteFileAtomically(path, [&](std::ostream& os) {
-    os << "frame,status,candidates,matches,inliers,match,source\n";
+    os << "frame,status,candidates,matches,inliers,match,source,verified_area,"
+          "verified_appearance\n";
+    const auto ids = [](const std::vector<int64_t>& v) {
+      return fmt::format("{}", fmt::join(v, ";"));
+    };
     for (const LoopResult& r : results) {
       os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ',' << r.matches
          << ',' << r.inliers << ',' << r.match_id << ',' << (r.detected() ? ToString(r.source) : "")
-         << '\n';
+         << ',' << ids(r.verified_in_area) << ',' << ids(r.verified_by_appearance) << '\n';
     }
   });
 }

@@ -253,8 +253,10 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
            : (s == LoopStatus::kRejectedByConsistency || s == LoopStatus::kRejectedByTemporal) ? 2
                                                                                                : 1;
   };
+  std::vector<int64_t> verified;
   for (int r = 0; r < n_verify; ++r) {
     const auto& cand = ranked[r];
+    verified.push_back(candidates[cand.entry]);
     LoopResult trial = *result;
     const LoopStatus trial_status =
         TryCandidate(query, query_index, record_index[cand.entry], cand.matches, verify,
@@ -270,6 +272,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     if (status == LoopStatus::kDetected) break;
   }
   if (support) last_support_ = std::make_pair(query_index, *support);
+  result->verified_in_area.insert(result->verified_in_area.end(), verified.begin(), verified.end());
   result->status = status;
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {

@@ -282,11 +282,14 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   result->timings.search_ms += fallback_search_ms;
   result->timings.match_ms += fallback.timings.match_ms;
   result->timings.verify_ms += fallback.timings.verify_ms;
+  std::vector<int64_t> by_appearance = std::move(fallback.verified_in_area);
   if (fallback.detected()) {
     fallback.timings = result->timings;
     fallback.source = CandidateSource::kAppearance;
+    fallback.verified_in_area = std::move(result->verified_in_area);
     *result = fallback;
   }
+  result->verified_by_appearance = std::move(by_appearance);
 }
 
 void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const {

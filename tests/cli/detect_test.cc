@@ -74,6 +74,27 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
               summary["timing_ms"][stage]["max"].get<double>());
   }
   EXPECT_GT(summary["total_ms"].get<double>(), 0.0);
+  // frames.csv: every detected frame lists its match among the keyframes it verified.
+  std::istringstream frames(ReadAll(out / "frames.csv"));
+  std::getline(frames, header);
+  EXPECT_EQ(header,
+            "frame,status,candidates,matches,inliers,match,source,verified_area,"
+            "verified_appearance");
+  int detected = 0;
+  for (std::string line; std::getline(frames, line);) {
+    std::vector<std::string> fields;
+    std::istringstream row(line);
+    for (std::string f; std::getline(row, f, ',');) fields.push_back(f);
+    if (fields.size() < 8 || fields[1] != "detected") continue;
+    ++detected;
+    std::vector<std::string> ids;
+    std::istringstream verified(fields[7]);
+    for (std::string id; std::getline(verified, id, ';');) ids.push_back(id);
+    EXPECT_FALSE(ids.empty()) << line;
+    EXPECT_LE(ids.size(), 3u) << line;
+    EXPECT_EQ(ids.empty() ? "" : ids.back(), fields[5]) << line;
+  }
+  EXPECT_EQ(detected, loops);
 }
 
 // `detect` runs `run`'s driver: an unreadable image is skipped (logged, counted), not fatal, and

@@ -307,6 +307,15 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
   EXPECT_EQ(fallback.matches, global.matches);
   EXPECT_EQ(fallback.inliers, global.inliers);
   EXPECT_STREQ(ToString(CandidateSource::kAppearance), "appearance");
+  // Which keyframes were verified, and by which search: the loop stops at its match.
+  EXPECT_TRUE(area.verified_in_area.empty());
+  EXPECT_TRUE(area.verified_by_appearance.empty());
+  EXPECT_TRUE(fallback.verified_in_area.empty());
+  EXPECT_EQ(fallback.verified_by_appearance, std::vector<int64_t>{0});
+  ASSERT_FALSE(global.verified_in_area.empty());
+  EXPECT_EQ(global.verified_in_area.back(), global.match_id);
+  EXPECT_LE(global.verified_in_area.size(), 3u);  // max_verify
+  EXPECT_TRUE(global.verified_by_appearance.empty());
 }
 
 TEST(LoopDetector, CheckEveryNSkipsButStores) {

@@ -129,6 +129,11 @@ struct LoopResult {
   bool has_world_from_query = false;
   Sim3d world_from_query;       // valid when has_world_from_query
   bool relocalization = false;  // the query had no pose (or came through Relocalize())
+  // Keyframe ids geometrically verified for this query, best-ranked first (at most
+  // Options::max_verify per search, stopping at the first loop): those the search area gave, then
+  // those the appearance fallback ranked (Options::appearance_fallback, when the area gave none).
+  std::vector<int64_t> verified_in_area;
+  std::vector<int64_t> verified_by_appearance;
   StageTimings timings;
   bool detected() const { return status == LoopStatus::kDetected; }
 };
