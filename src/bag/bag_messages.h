@@ -43,6 +43,9 @@ struct PoseMessage {
   double stamp = 0.0;  // header.stamp, seconds
   double position[3] = {0, 0, 0};
   double orientation_xyzw[4] = {0, 0, 0, 1};
+  // PoseWithCovarianceStamped / Odometry: the pose's 6x6 covariance, row-major, in ROS order
+  // (x, y, z, rotation about X, Y, Z of the header frame); all zero when the sender gives none.
+  double covariance[36] = {};
 };
 
 // sensor_msgs/CameraInfo (first message of the topic).

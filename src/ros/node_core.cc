@@ -1,6 +1,7 @@
 #include "ros/node_core.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -13,6 +14,7 @@
 #include <unordered_map>
 
 #include <fmt/format.h>
+#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
 #include "bag/message_convert.h"
@@ -33,6 +35,8 @@ std::vector<std::pair<std::string, double>> NodeStats::Fields() const {
           {"keyframes", keyframes},
           {"keyframes_without_pose", keyframes_without_pose},
           {"keyframes_with_points", keyframes_with_points},
+          {"keyframes_with_covariance", keyframes_with_covariance},
+          {"covariance_unusable", covariance_unusable},
           {"poses", poses},
           {"queued", queued},
           {"loops", loops},
@@ -94,6 +98,16 @@ std::optional<T> Nearest(const std::map<double, T>& by_stamp, double stamp, doub
   return best;
 }
 
+// A raw pose and its message's covariance (all zero: none).
+struct PoseEntry {
+  Rigid3d pose;
+  std::array<double, 36> covariance{};
+};
+
+bool AllZero(const std::array<double, 36>& c) {
+  return std::all_of(c.begin(), c.end(), [](double v) { return v == 0.0; });
+}
+
 struct LoopRecord {
   LoopMessage message;
   int64_t loop_index = -1;  // LoopEvent::loop_index
@@ -108,6 +122,30 @@ bool Kept(const LoopRecord& l, size_t num_loops, const std::vector<size_t>& reje
 
 }  // namespace
 
+std::optional<std::array<double, 36>> StepCovarianceFromAbsolute(
+    const std::array<double, 4>& prev_rotation_xyzw, const std::array<double, 36>& prev_covariance,
+    const std::array<double, 36>& covariance) {
+  using Matrix6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
+  if (AllZero(prev_covariance) || AllZero(covariance)) return std::nullopt;
+  const Matrix6 prev(prev_covariance.data());
+  const Matrix6 now(covariance.data());
+  if (!prev.allFinite() || !now.allFinite()) return std::nullopt;
+  Matrix6 growth = now - prev;
+  growth = 0.5 * (growth + growth.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eig(growth);
+  const double largest = eig.eigenvalues().maxCoeff();
+  if (!(largest > 0.0) || eig.eigenvalues().minCoeff() <= 1e-12 * largest) return std::nullopt;
+  const Eigen::Quaterniond q(prev_rotation_xyzw[3], prev_rotation_xyzw[0], prev_rotation_xyzw[1],
+                             prev_rotation_xyzw[2]);
+  Matrix6 to_prev = Matrix6::Zero();  // world axes -> the previous keyframe's axes
+  to_prev.topLeftCorner<3, 3>() = q.normalized().toRotationMatrix().transpose();
+  to_prev.bottomRightCorner<3, 3>() = to_prev.topLeftCorner<3, 3>();
+  const Matrix6 step = to_prev * growth * to_prev.transpose();
+  std::array<double, 36> out;
+  Eigen::Map<Matrix6>(out.data()) = 0.5 * (step + step.transpose());
+  return out;
+}
+
 struct NodeCore::Impl {
   NodeParams params;
   NodeCallbacks callbacks;
@@ -119,7 +157,8 @@ struct NodeCore::Impl {
   std::condition_variable wake;
   std::optional<CameraIntrinsics> intrinsics;
   std::map<double, ImageData> images;
-  std::map<double, Rigid3d> poses;
+  std::map<double, PoseEntry> poses;
+  std::optional<PoseEntry> last_keyframe_pose;  // of the last keyframe with a pose (worker only)
   std::map<double, std::vector<double>> points;
   double last_stamp = -std::numeric_limits<double>::infinity();  // of the last taken image
   bool finishing = false;
@@ -166,7 +205,7 @@ struct NodeCore::Impl {
         Warn(fmt::format("image {:.9f} dropped: no camera_info yet", stamp));
         continue;
       }
-      std::optional<Rigid3d> pose = Nearest(poses, stamp, params.max_pose_dt);
+      std::optional<PoseEntry> pose = Nearest(poses, stamp, params.max_pose_dt);
       std::optional<std::vector<double>> xyz = Nearest(points, stamp, params.max_pose_dt);
       // Poses and points older than any image still to come are of no use.
       poses.erase(poses.begin(), poses.lower_bound(stamp - params.max_pose_dt));
@@ -178,8 +217,34 @@ struct NodeCore::Impl {
     }
   }
 
+  // The step covariance from the pose messages' covariances (StepCovarianceFromAbsolute), when
+  // this keyframe and the previous one with a pose both carry one; counts the unusable ones.
+  void SetStepCovariance(const PoseEntry& pose, KeyframeInput* input) {
+    if (!last_keyframe_pose || AllZero(pose.covariance) ||
+        AllZero(last_keyframe_pose->covariance)) {
+      return;
+    }
+    const Eigen::Quaterniond q = last_keyframe_pose->pose.rotation;
+    const auto step = StepCovarianceFromAbsolute({q.x(), q.y(), q.z(), q.w()},
+                                                 last_keyframe_pose->covariance, pose.covariance);
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!step) {
+      if (stats.covariance_unusable++ == 0) {
+        Warn(
+            fmt::format("image {:.9f}: the pose covariance did not grow from the previous "
+                        "keyframe's (not positive definite): the default odometry model is used "
+                        "where that happens",
+                        input->timestamp));
+      }
+      return;
+    }
+    input->odometry_covariance = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>(step->data());
+    ++stats.keyframes_with_covariance;
+  }
+
   void Process(double stamp, const ImageData& image, const CameraIntrinsics& k,
-               const std::optional<Rigid3d>& pose, const std::optional<std::vector<double>>& xyz) {
+               const std::optional<PoseEntry>& pose,
+               const std::optional<std::vector<double>>& xyz) {
     KeyframeInput input;
     try {
       input.image = bag_internal::DecodeGray(image);
@@ -195,7 +260,10 @@ struct NodeCore::Impl {
     }
     input.timestamp = stamp;
     input.intrinsics = k;
-    if (pose) input.world_from_cam = Sim3d(*pose);
+    if (pose) {
+      input.world_from_cam = Sim3d(pose->pose);
+      SetStepCovariance(*pose, &input);
+    }
     if (xyz && use_mapped_pixels) {
       for (size_t i = 0; i + 2 < xyz->size(); i += 3) {
         const Eigen::Vector3d p((*xyz)[i], (*xyz)[i + 1], (*xyz)[i + 2]);
@@ -226,6 +294,7 @@ struct NodeCore::Impl {
       Bad(fmt::format("image {:.9f} dropped: {}", stamp, e.what()));
       return;
     }
+    if (pose) last_keyframe_pose = pose;
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     {
@@ -455,7 +524,9 @@ void NodeCore::AddPose(const bag_internal::PoseMessage& pose) {
   {
     std::lock_guard<std::mutex> lock(s.mutex);
     ++s.stats.poses;
-    s.poses[pose.stamp] = p;
+    PoseEntry& entry = s.poses[pose.stamp];
+    entry.pose = p;
+    std::copy(std::begin(pose.covariance), std::end(pose.covariance), entry.covariance.begin());
     while (static_cast<int>(s.poses.size()) > s.params.pose_buffer) s.poses.erase(s.poses.begin());
   }
   s.wake.notify_all();

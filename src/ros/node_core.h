@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -76,11 +77,27 @@ struct PathMessage {
   std::vector<std::array<size_t, 2>> loops;
 };
 
+// The covariance of the raw step from the previous keyframe to this one, [translation(3),
+// rotation(3)] in the previous keyframe's frame (KeyframeInput::odometry_covariance), from the
+// covariances of the two absolute poses as a ROS PoseWithCovariance / Odometry gives them (world
+// frame, fixed axes): a vSLAM's absolute uncertainty grows by the uncertainty of each step, so the
+// step's is the growth, Sigma_k - Sigma_prev, rotated into the previous keyframe's frame (both
+// blocks by R_prev^T; first order, the lever-arm coupling of rotation into translation left out).
+// nullopt when the growth is not positive definite (eigenvalue <= 1e-12 x its largest: a reset,
+// a constant or a shrinking covariance), or either covariance is all zero (none given).
+std::optional<std::array<double, 36>> StepCovarianceFromAbsolute(
+    const std::array<double, 4>& prev_rotation_xyzw, const std::array<double, 36>& prev_covariance,
+    const std::array<double, 36>& covariance);
+
 struct NodeStats {
   int64_t images = 0;                  // image messages received
   int64_t keyframes = 0;               // processed (LoopClosing::AddKeyframe)
   int64_t keyframes_without_pose = 0;  // of those, with no pose within max_pose_dt
   int64_t keyframes_with_points = 0;   // of those, with mapped points
+  // Of those, with the step covariance from the pose messages' (StepCovarianceFromAbsolute), and
+  // with pose covariances whose growth was not usable (the default odometry model then).
+  int64_t keyframes_with_covariance = 0;
+  int64_t covariance_unusable = 0;
   int64_t poses = 0;                   // pose messages received
   int64_t dropped_out_of_order = 0;    // images stamped at or before the last processed one
   int64_t dropped_no_camera_info = 0;  // images pushed out of the queue before camera_info came

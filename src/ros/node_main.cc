@@ -16,6 +16,7 @@
 //              files; the response's message is the JSON summary. Shutdown does the same.
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <memory>
@@ -30,6 +31,7 @@
 #include <nav_msgs/Path.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_msgs/Float64MultiArray.h>
+#include <std_msgs/Header.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -209,15 +211,21 @@ class Node {
     core_->AddPose(bag_internal::ToPoseMessage(pose_index_++, msg->header.stamp, msg->pose.position,
                                                msg->pose.orientation));
   }
+  // The pose's covariance goes along: consecutive keyframes' covariances give the odometry
+  // edge's (NodeCore, StepCovarianceFromAbsolute).
+  template <typename PoseWithCovariance>
+  void AddPoseWithCovariance(const std_msgs::Header& header, const PoseWithCovariance& pose) {
+    SetFrame(header.frame_id);
+    bag_internal::PoseMessage m = bag_internal::ToPoseMessage(
+        pose_index_++, header.stamp, pose.pose.position, pose.pose.orientation);
+    std::copy(pose.covariance.begin(), pose.covariance.end(), m.covariance);
+    core_->AddPose(m);
+  }
   void OnPoseCov(const geometry_msgs::PoseWithCovarianceStamped::ConstPtr& msg) {
-    SetFrame(msg->header.frame_id);
-    core_->AddPose(bag_internal::ToPoseMessage(
-        pose_index_++, msg->header.stamp, msg->pose.pose.position, msg->pose.pose.orientation));
+    AddPoseWithCovariance(msg->header, msg->pose);
   }
   void OnOdometry(const nav_msgs::Odometry::ConstPtr& msg) {
-    SetFrame(msg->header.frame_id);
-    core_->AddPose(bag_internal::ToPoseMessage(
-        pose_index_++, msg->header.stamp, msg->pose.pose.position, msg->pose.pose.orientation));
+    AddPoseWithCovariance(msg->header, msg->pose);
   }
   void OnPoints(const sensor_msgs::PointCloud2::ConstPtr& msg) {
     std::vector<double> xyz;

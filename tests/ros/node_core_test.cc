@@ -2,7 +2,9 @@
 // (tests/ros/test_node.py runs the node itself against `sparseloop run`.)
 #include "ros/node_core.h"
 
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -171,6 +173,65 @@ TEST(NodeCore, BadPosesAndCameraInfoAreIgnoredWithAWarning) {
   EXPECT_TRUE(warnings.Any("camera_info ignored"));
   EXPECT_EQ(core.Stats().poses, 0);
   EXPECT_EQ(core.Stats().dropped_bad, 2);
+}
+
+std::array<double, 36> Diagonal(const std::array<double, 6>& d) {
+  std::array<double, 36> c{};
+  for (int i = 0; i < 6; ++i) c[i * 6 + i] = d[i];
+  return c;
+}
+
+// The step covariance is the growth of the absolute one, in the previous keyframe's axes.
+TEST(StepCovarianceFromAbsolute, GrowthRotatedIntoThePreviousKeyframe) {
+  const std::array<double, 36> prev = Diagonal({1, 1, 1, 0.01, 0.01, 0.01});
+  const std::array<double, 36> now = Diagonal({5, 2, 10, 0.05, 0.02, 0.1});
+  const std::array<double, 4> identity = {0, 0, 0, 1};
+  auto step = StepCovarianceFromAbsolute(identity, prev, now);
+  ASSERT_TRUE(step.has_value());
+  const std::array<double, 36> growth = Diagonal({4, 1, 9, 0.04, 0.01, 0.09});
+  for (int i = 0; i < 36; ++i) EXPECT_NEAR((*step)[i], growth[i], 1e-12) << i;
+  // The previous camera turned 90 deg about z (its x axis is the world's y): world x's variance
+  // is the camera's y, world y's the camera's x, for translation and rotation alike.
+  const double h = std::sqrt(0.5);
+  step = StepCovarianceFromAbsolute({0, 0, h, h}, prev, now);
+  ASSERT_TRUE(step.has_value());
+  const std::array<double, 36> turned = Diagonal({1, 4, 9, 0.01, 0.04, 0.09});
+  for (int i = 0; i < 36; ++i) EXPECT_NEAR((*step)[i], turned[i], 1e-12) << i;
+  // No growth in one direction, a shrink, or no covariance: not usable.
+  EXPECT_FALSE(StepCovarianceFromAbsolute(identity, prev, prev).has_value());
+  EXPECT_FALSE(StepCovarianceFromAbsolute(identity, now, prev).has_value());
+  EXPECT_FALSE(StepCovarianceFromAbsolute(identity, std::array<double, 36>{}, now).has_value());
+  EXPECT_FALSE(StepCovarianceFromAbsolute(identity, prev, Diagonal({5, 2, 10, 0.05, 0.02, 0.01}))
+                   .has_value());
+}
+
+// PoseWithCovariance / Odometry messages: keyframes after the first take the growth between
+// their poses' covariances as their odometry covariance; a covariance that does not grow falls
+// back to the default model, with one warning.
+TEST(NodeCore, PoseCovariancesGiveTheStepCovariance) {
+  const auto run = [](bool growing, Warnings* warnings) {
+    NodeCore core(NodeParams{}, warnings->Callbacks());
+    core.AddCameraInfo(Info());
+    for (int i = 0; i < 4; ++i) {
+      PoseMessage p = Pose(1.0 + i);
+      const double v = growing ? 0.01 * (i + 1) : 0.01;
+      const std::array<double, 36> c = Diagonal({v, v, v, 0.1 * v, 0.1 * v, 0.1 * v});
+      std::copy(c.begin(), c.end(), p.covariance);
+      core.AddPose(p);
+      core.AddImage(Image(1.0 + i));
+    }
+    return nlohmann::json::parse(core.Finish());
+  };
+  Warnings quiet;
+  const auto growing = run(true, &quiet);
+  EXPECT_EQ(growing["keyframes"], 4);
+  EXPECT_EQ(growing["keyframes_with_covariance"], 3);
+  EXPECT_EQ(growing["covariance_unusable"], 0);
+  Warnings warned;
+  const auto constant = run(false, &warned);
+  EXPECT_EQ(constant["keyframes_with_covariance"], 0);
+  EXPECT_EQ(constant["covariance_unusable"], 3);
+  EXPECT_TRUE(warned.Any("default odometry model"));
 }
 
 TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
