@@ -46,6 +46,7 @@ def run_metrics(sparseloop, run_dir, seq_dir, world):
     t = s.get("timing_ms", {})
     m["timing_ms"] = t
     m["ms_total_median"] = t.get("total", {}).get("median", float("nan"))
+    m["ms_total_p90"] = t.get("total", {}).get("p90", float("nan"))
     m["ms_total_p99"] = t.get("total", {}).get("p99", float("nan"))
     m["bytes_per_keyframe"] = s.get("bytes_per_keyframe", float("nan"))
     m["keyframes"] = s.get("keyframes", 0)
