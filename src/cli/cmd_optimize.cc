@@ -1,7 +1,7 @@
 // sparseloop optimize: read a g2o / TORO pose graph, optimise it, print a Ceres-style brief
 // report and write the optimised graph (g2o, atomically).
 #include <iostream>
-#include <map>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -23,12 +23,13 @@ int RunOptimize(int argc, char** argv) {
       "EDGE_SE2; TORO EDGE3)"};
   std::string in;
   std::string out;
-  std::string robust = "none";
+  std::string robust = "trivial";
   PoseGraphOptions options;
   options.rejection = OutlierRejection::kNone;  // g2o files do not mark loops
   app.add_option("--g2o", in, "input pose graph")->required();
   app.add_option("--out", out, "output g2o file (written atomically)")->required();
-  app.add_option("--robust", robust, "robust loss on every edge: none (default), huber, cauchy");
+  app.add_option("--robust", robust,
+                 "robust loss on every edge: trivial (default; also 'none'), huber, cauchy");
   app.add_option("--loss-scale", options.loss_scale,
                  "where the robust loss bends, in whitened residual units (default 1)");
   app.add_option("--max-iterations", options.max_iterations, "Levenberg-Marquardt iterations")
@@ -43,13 +44,15 @@ int RunOptimize(int argc, char** argv) {
   Parse(app, argc, argv);
   CheckOutputFileFlag("--out", out);
 
-  const std::map<std::string, RobustLoss> losses = {{"none", RobustLoss::kTrivial},
-                                                    {"huber", RobustLoss::kHuber},
-                                                    {"cauchy", RobustLoss::kCauchy}};
-  const auto it = losses.find(robust);
-  SL_CHECK_MSG(it != losses.end(), "--robust must be none, huber or cauchy, got '{}'", robust);
-  options.edge_loss = it->second;
-  options.loop_loss = it->second;
+  // The loss names of the config (ToString(RobustLoss)); "none" is the older name of trivial.
+  std::optional<RobustLoss> loss;
+  for (RobustLoss l : {RobustLoss::kTrivial, RobustLoss::kHuber, RobustLoss::kCauchy})
+    if (robust == ToString(l)) loss = l;
+  if (robust == "none") loss = RobustLoss::kTrivial;
+  SL_CHECK_MSG(loss.has_value(), "--robust must be trivial (or none), huber or cauchy, got '{}'",
+               robust);
+  options.edge_loss = *loss;
+  options.loop_loss = *loss;
   CheckNamingFlags({{"loss_scale", "--loss-scale"},
                     {"max_iterations", "--max-iterations"},
                     {"num_threads", "--threads"}},

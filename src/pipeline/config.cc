@@ -102,43 +102,6 @@ class KeyList {
   std::vector<ConfigKey> keys_;
 };
 
-const char* LossName(RobustLoss l) {
-  switch (l) {
-    case RobustLoss::kTrivial:
-      return "trivial";
-    case RobustLoss::kHuber:
-      return "huber";
-    case RobustLoss::kCauchy:
-      return "cauchy";
-  }
-  return "?";
-}
-const char* RejectionName(OutlierRejection r) {
-  switch (r) {
-    case OutlierRejection::kNone:
-      return "none";
-    case OutlierRejection::kPcm:
-      return "pcm";
-    case OutlierRejection::kSwitchable:
-      return "switchable";
-    case OutlierRejection::kPcmAndSwitchable:
-      return "pcm+switchable";
-  }
-  return "?";
-}
-const char* VertexName(VertexType v) {
-  switch (v) {
-    case VertexType::kSim3:
-      return "sim3";
-    case VertexType::kSe3:
-      return "se3";
-    case VertexType::kFourDof:
-      return "4dof";
-    default:
-      return "se2";
-  }
-}
-
 // detector.search.plane_normal: unset (absent) or [x, y, z].
 ConfigKey PlaneNormalKey() {
   return ConfigKey{"detector.search.plane_normal",
@@ -395,16 +358,19 @@ void AddOptimizerKeys(KeyList& k) {
         "first trust region (1 / damping)");
   const std::vector<RobustLoss> losses = {RobustLoss::kTrivial, RobustLoss::kHuber,
                                           RobustLoss::kCauchy};
-  k.AddEnum(p + "loop_loss", SL_FIELD(optimizer.loop_loss), losses, LossName,
-            "robust loss on loop residuals");
-  k.AddEnum(p + "edge_loss", SL_FIELD(optimizer.edge_loss), losses, LossName,
-            "robust loss on odometry edges");
+  k.AddEnum(
+      p + "loop_loss", SL_FIELD(optimizer.loop_loss), losses,
+      [](RobustLoss l) { return ToString(l); }, "robust loss on loop residuals");
+  k.AddEnum(
+      p + "edge_loss", SL_FIELD(optimizer.edge_loss), losses,
+      [](RobustLoss l) { return ToString(l); }, "robust loss on odometry edges");
   k.Add(p + "loss_scale", SL_FIELD(optimizer.loss_scale), "sigmas",
         "whitened residual where the robust loss bends");
-  k.AddEnum(p + "rejection", SL_FIELD(optimizer.rejection),
-            {OutlierRejection::kNone, OutlierRejection::kPcm, OutlierRejection::kSwitchable,
-             OutlierRejection::kPcmAndSwitchable},
-            RejectionName, "outlier loop rejection");
+  k.AddEnum(
+      p + "rejection", SL_FIELD(optimizer.rejection),
+      {OutlierRejection::kNone, OutlierRejection::kPcm, OutlierRejection::kSwitchable,
+       OutlierRejection::kPcmAndSwitchable},
+      [](OutlierRejection r) { return ToString(r); }, "outlier loop rejection");
   k.Add(p + "pcm_confidence", SL_FIELD(optimizer.pcm.confidence), "probability",
         "PCM: chi-square quantile of the consistency threshold");
   k.Add(p + "pcm_step_translation_fraction", SL_FIELD(optimizer.pcm.step_translation_fraction),
@@ -454,9 +420,11 @@ void AddGraphKeys(KeyList& k) {
   k.Add(d + "weight", SL_FIELD(direction_loop.weight), "",
         "loop with a direction only: "
         "information multiplier");
-  k.AddEnum("vertex_type", SL_FIELD(vertex_type),
-            {VertexType::kSim3, VertexType::kSe3, VertexType::kFourDof}, VertexName,
-            "pose-graph vertices (sim3 for monocular raw poses)");
+  k.AddEnum(
+      "vertex_type", SL_FIELD(vertex_type),
+      {VertexType::kSim3, VertexType::kSe3, VertexType::kFourDof},
+      [](VertexType v) { return ToString(v); },
+      "pose-graph vertices (sim3 for monocular raw poses)");
   k.Add("loop_translation_sigma_steps", SL_FIELD(loop_translation_sigma_steps), "steps",
         "metric loop: translation sigma in raw steps at the query");
   k.Add("loop_rotation_sigma_rad", SL_FIELD(loop_rotation_sigma_rad), "rad",

@@ -18,6 +18,44 @@
 
 namespace sparseloop {
 
+const char* ToString(RobustLoss l) {
+  switch (l) {
+    case RobustLoss::kTrivial:
+      return "trivial";
+    case RobustLoss::kHuber:
+      return "huber";
+    case RobustLoss::kCauchy:
+      return "cauchy";
+  }
+  return "?";
+}
+const char* ToString(OutlierRejection r) {
+  switch (r) {
+    case OutlierRejection::kNone:
+      return "none";
+    case OutlierRejection::kPcm:
+      return "pcm";
+    case OutlierRejection::kSwitchable:
+      return "switchable";
+    case OutlierRejection::kPcmAndSwitchable:
+      return "pcm+switchable";
+  }
+  return "?";
+}
+const char* ToString(VertexType v) {
+  switch (v) {
+    case VertexType::kSim3:
+      return "sim3";
+    case VertexType::kSe3:
+      return "se3";
+    case VertexType::kFourDof:
+      return "4dof";
+    case VertexType::kSe2:
+      return "se2";
+  }
+  return "?";
+}
+
 int TangentSize(VertexType type) {
   switch (type) {
     case VertexType::kSim3:

@@ -72,6 +72,9 @@ TEST(CliOptimize, BadInputExitsTwoWithLine) {
   const CliResult robust = RunCli({"optimize", "--g2o", (dir / "bad.g2o").string(), "--out",
                                    (dir / "out.g2o").string(), "--robust", "tukey"});
   EXPECT_EQ(robust.exit_code, 2);
+  EXPECT_NE(robust.err.find("--robust must be trivial (or none), huber or cauchy"),
+            std::string::npos)
+      << robust.err;
 }
 
 TEST(CliOptimize, ParkingGarage) {

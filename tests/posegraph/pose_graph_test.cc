@@ -356,6 +356,18 @@ TEST(Pcm, IncrementalEqualsFullRecomputation) {
   EXPECT_GT(rejected_somewhere, 0u);  // the false loops made PCM reject something
 }
 
+// The one name table of each option enum (the config keys and the CLI read these).
+TEST(PoseGraph, OptionEnumNamesLiveNextToTheirEnums) {
+  EXPECT_STREQ(ToString(RobustLoss::kTrivial), "trivial");
+  EXPECT_STREQ(ToString(RobustLoss::kHuber), "huber");
+  EXPECT_STREQ(ToString(RobustLoss::kCauchy), "cauchy");
+  EXPECT_STREQ(ToString(OutlierRejection::kNone), "none");
+  EXPECT_STREQ(ToString(OutlierRejection::kPcmAndSwitchable), "pcm+switchable");
+  EXPECT_STREQ(ToString(VertexType::kSim3), "sim3");
+  EXPECT_STREQ(ToString(VertexType::kFourDof), "4dof");
+  EXPECT_STREQ(ToString(VertexType::kSe2), "se2");
+}
+
 TEST(PoseGraph, GaugeVertexStaysFixedAndOptionsAreChecked) {
   const Synthetic s = MakeSynthetic(60, 1.5, 4);
   std::vector<int64_t> ids(s.raw.size());

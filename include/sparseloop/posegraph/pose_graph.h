@@ -76,12 +76,14 @@ struct OdometryWeighting {
 };
 
 enum class RobustLoss { kTrivial, kHuber, kCauchy };
+const char* ToString(RobustLoss loss);  // "trivial", "huber", "cauchy"
 enum class OutlierRejection {
   kNone,        // plain least squares (with the chosen robust loss)
   kPcm,         // pairwise consistency maximisation, then the solve with accepted loops
   kSwitchable,  // switchable constraints (Suenderhauf & Protzel 2012)
   kPcmAndSwitchable,
 };
+const char* ToString(OutlierRejection rejection);  // "none", "pcm", "switchable", "pcm+switchable"
 
 // Pairwise consistency maximisation (Mangelson et al. 2018, as in Kimera-RPGO). Two loops a, b
 // are consistent when the cycle  Z_a * odom(q_a -> q_b) * Z_b^-1 * odom(m_b -> m_a)  is close to

@@ -16,6 +16,9 @@ enum class VertexType {
   kSe2,      // x, y, yaw (planar 2D graphs)
 };
 
+// "sim3", "se3", "4dof", "se2" (the config key vertex_type and the CLI use these names).
+const char* ToString(VertexType type);
+
 // Tangent dimension of a vertex type (7, 6, 4, 3).
 int TangentSize(VertexType type);
 
