@@ -326,18 +326,27 @@ TEST(Verification, IterationsToFindPassingModelHandWorked) {
   VerifyOptions o;  // confidence 0.999, max_iterations 1000
   o.min_inliers = 8;
   // n = 10, floor 8, 5-point: P(all-inlier sample) = 8*7*6*5*4 / (10*9*8*7*6) = 2/9;
-  // log(0.001) / log(7/9) = 27.49 -> 28.
-  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 10, 5), 28);
+  // log(0.001) / log(7/9) = 27.49 -> 28, raised to the minimum of 100.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 10, 5), 100);
   // n = 15: 6720 / 360360 -> 366.97 -> 367.
   EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), 367);
-  // Every match must be an inlier: one sample.
-  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 8, 5), 1);
+  // Every match must be an inlier: the minimum.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 8, 5), 100);
+  // n = 12, floor 6 (weak pairs): 720 / 95040 -> 908.4 -> 909.
+  o.min_inliers = 6;
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 12, 5), 909);
+  o.max_iterations = 50;  // a cap below the minimum wins
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 8, 5), 50);
+  o.max_iterations = 1000;
+  o.min_inliers = 8;
   // Many matches, a low floor: the cap.
   EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 1000, 5), 1000);
-  // The ratio floor counts when it is higher: 0.8 * 10 = 8 with min_inliers 6.
+  // The ratio floor counts when it is higher: 0.8 * 15 = 12 with min_inliers 6:
+  // 12*11*10*9*8 / 360360 = 0.2637 -> 23.7 -> 24, raised to 100; floor 6 alone would give 1000.
   o.min_inliers = 6;
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), 1000);
   o.min_inlier_ratio = 0.8;
-  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 10, 5), 28);
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), 100);
 }
 
 // The shortened search finds what the full search finds: 15 matches, 8 of them true, over 100
