@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <vector>
 
@@ -280,6 +281,69 @@ BENCHMARK(BM_QueryStoredKeyframes)
     ->Args({1000, 300})
     ->Args({10000, 300})
     ->Unit(benchmark::kMicrosecond);
+
+// The appearance fallback's matching over N stored K = 15 records (issue #17: <= 2 ms at 10,000
+// stored keyframes; issue #19: its tail). Arg mode 0: the pre-ranking (LoopDetector's default):
+// every record scored against the query's own 15 (ScoreAgainstProbe), the 20 best matched with
+// the query's whole extraction (1,000); mode 1: every record matched with the whole extraction
+// (the fallback before session 18). Verification is not timed (synthetic records do not verify).
+// The query revisits record N / 2 (its 15 planted, with noise, in its extraction).
+void BM_AppearanceFallback(benchmark::State& state) {
+  const int64_t n = state.range(0);
+  const bool pre_rank = state.range(1) == 0;
+  constexpr int kStored = 15, kQuery = 1000;
+  const LoopDetector::Options defaults{LoopDetector::Options{}};
+  const size_t keep = static_cast<size_t>(defaults.fallback_candidates);
+  std::mt19937_64 rng(11);
+  std::vector<KeyframeRecord> records;
+  records.reserve(n);
+  for (int64_t i = 0; i < n; ++i) records.push_back(SyntheticRecord(i, kStored, rng));
+  KeyframeRecord query = SyntheticRecord(n, kQuery, rng);
+  const KeyframeRecord& revisit = records[static_cast<size_t>(n / 2)];
+  for (int j = 0; j < kStored; ++j) {
+    Descriptor d = revisit.descriptors[j];
+    for (int b = 0; b < 20; ++b) {  // 20 random bits flipped
+      const uint64_t bit = rng() % 256;
+      d[bit / 64] ^= 1ull << (bit % 64);
+    }
+    query.descriptors[static_cast<size_t>(40 * j)] = d;
+  }
+  const std::vector<Descriptor> own(query.descriptors.begin(), query.descriptors.begin() + kStored);
+  MatchOptions mo;
+  int64_t best_id = -1;
+  for (auto _ : state) {
+    std::vector<std::pair<ProbeScore, int64_t>> scored;
+    if (pre_rank) {
+      scored.reserve(records.size());
+      for (const KeyframeRecord& r : records)
+        scored.push_back({ScoreAgainstProbe(r.descriptors, own, mo.max_distance), -r.id});
+      const size_t k = std::min(keep, scored.size());
+      std::partial_sort(scored.begin(), scored.begin() + static_cast<std::ptrdiff_t>(k),
+                        scored.end(), std::greater<>());
+      scored.resize(k);
+    } else {
+      for (const KeyframeRecord& r : records) scored.push_back({ProbeScore{}, -r.id});
+    }
+    size_t best = 0;
+    for (const auto& [score, minus_id] : scored) {
+      const size_t m =
+          MatchStoredIntoQuery(query.descriptors, records[-minus_id].descriptors, mo).size();
+      if (m > best) best = m, best_id = -minus_id;
+    }
+    benchmark::DoNotOptimize(best);
+  }
+  state.counters["found_revisit"] = best_id == revisit.id ? 1.0 : 0.0;
+  state.counters["matched_in_full"] =
+      pre_rank ? static_cast<double>(std::min<int64_t>(static_cast<int64_t>(keep), n))
+               : static_cast<double>(n);
+}
+BENCHMARK(BM_AppearanceFallback)
+    ->ArgNames({"stored", "full"})
+    ->Args({1000, 0})
+    ->Args({10000, 0})
+    ->Args({1000, 1})
+    ->Args({10000, 1})
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace sparseloop

@@ -129,6 +129,10 @@ py::dict ResultToDict(const LoopResult& r) {
   d["inliers"] = r.inliers;
   d["score"] = r.score;
   d["match_session"] = r.match_session;
+  d["source"] = ToString(r.source);
+  d["relocalization"] = r.relocalization;
+  d["pose_segment"] = r.pose_segment;
+  d["pose_reset"] = ToString(r.pose_reset);
   d["match_from_query"] = ToNumpy(r.match_from_query.ToMatrix4());
   d["scale"] = r.match_from_query.scale;
   return d;
@@ -245,7 +249,7 @@ class PyLoopClosing {
   py::dict AddKeyframe(int64_t id, double timestamp, const py::array& image,
                        const py::object& intrinsics, const py::object& pose,
                        const py::object& mapped_pixels, const py::object& mapped_depths,
-                       const py::object& odometry_covariance) {
+                       const py::object& odometry_covariance, bool pose_reset) {
     KeyframeInput in;
     in.id = id;
     in.timestamp = timestamp;
@@ -259,6 +263,7 @@ class PyLoopClosing {
     in.intrinsics.width = in.image.cols;
     in.intrinsics.height = in.image.rows;
     in.world_from_cam = PoseFromPython(pose);
+    in.pose_reset = pose_reset;
     if (!mapped_pixels.is_none()) {
       const auto px =
           mapped_pixels.cast<py::array_t<float, py::array::c_style | py::array::forcecast>>();
@@ -363,12 +368,14 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
       .def("add_keyframe", &PyLoopClosing::AddKeyframe, py::arg("id"), py::arg("timestamp"),
            py::arg("image"), py::arg("intrinsics"), py::arg("pose") = py::none(),
            py::arg("mapped_pixels") = py::none(), py::arg("mapped_depths") = py::none(),
-           py::arg("odometry_covariance") = py::none(),
+           py::arg("odometry_covariance") = py::none(), py::arg("pose_reset") = false,
            "Detects a loop for the keyframe (uint8 (H, W) image; intrinsics (fx, fy, cx, cy); "
            "pose: 4x4 world_from_cam or (R, t[, scale]); None = tracking lost) and queues it for "
            "the background solve. odometry_covariance: (6, 6) covariance of the raw step from the "
            "previous keyframe with a pose, order [translation, rotation] (None: the default "
-           "model). Returns the loop event as a dict.")
+           "model). pose_reset=True: the vSLAM re-initialised, this pose is in a new world frame "
+           "(the result's pose_segment / pose_reset say what the detector made of it). Returns "
+           "the loop event as a dict.")
       .def("finish", &PyLoopClosing::Finish, "Final solve; joins the background thread.")
       .def("wait_for_idle", &PyLoopClosing::WaitForIdle)
       .def("corrections", &PyLoopClosing::Corrections,
@@ -383,6 +390,10 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
                              [](const PyLoopClosing& c) { return c.closing().num_loops(); })
       .def_property_readonly("num_solves",
                              [](const PyLoopClosing& c) { return c.closing().num_solves(); })
+      .def_property_readonly(
+          "num_interrupted_solves",
+          [](const PyLoopClosing& c) { return c.closing().num_interrupted_solves(); },
+          "solves a newer loop interrupted (no callback; num_solves counts them)")
       .def_property_readonly("finished",
                              [](const PyLoopClosing& c) { return c.closing().finished(); });
 

@@ -69,7 +69,10 @@ def test_callback_runs_on_each_solve_with_the_gil(sequence):
     for frame in read_frames(sequence):
         closing.add_keyframe(**frame)
     closing.finish()
-    assert seen and seen == list(range(1, len(seen) + 1)) and closing.num_solves == len(seen)
+    # One callback per completed solve; a solve that a newer loop interrupted (a busy machine) is
+    # re-run at once without a callback.
+    assert seen and seen == list(range(1, len(seen) + 1))
+    assert closing.num_solves == len(seen) + closing.num_interrupted_solves
     assert closing.corrected_pose(59).shape == (4, 4)
     assert closing.corrected_pose(1000) is None
 

@@ -305,14 +305,16 @@ std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
 void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
   WriteFileAtomically(path, [&](std::ostream& os) {
     os << "frame,status,candidates,matches,inliers,match,source,verified_area,"
-          "verified_appearance\n";
+          "verified_appearance,appearance_candidates,pose_segment,pose_reset\n";
     const auto ids = [](const std::vector<int64_t>& v) {
       return fmt::format("{}", fmt::join(v, ";"));
     };
     for (const LoopResult& r : results) {
       os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ',' << r.matches
          << ',' << r.inliers << ',' << r.match_id << ',' << (r.detected() ? ToString(r.source) : "")
-         << ',' << ids(r.verified_in_area) << ',' << ids(r.verified_by_appearance) << '\n';
+         << ',' << ids(r.verified_in_area) << ',' << ids(r.verified_by_appearance) << ','
+         << r.appearance_candidates << ',' << r.pose_segment << ',' << ToString(r.pose_reset)
+         << '\n';
     }
   });
 }
@@ -331,7 +333,8 @@ nlohmann::json StatusCountsJson(const std::vector<LoopResult>& results) {
 
 nlohmann::json SourceCountsJson(const std::vector<LoopResult>& results) {
   std::map<std::string, int> counts;
-  for (CandidateSource s : {CandidateSource::kSearchArea, CandidateSource::kAppearance})
+  for (CandidateSource s : {CandidateSource::kSearchArea, CandidateSource::kAppearance,
+                            CandidateSource::kEarlierSegment})
     counts[ToString(s)] = 0;
   for (const auto& r : results)
     if (r.detected()) counts[ToString(r.source)]++;
@@ -396,6 +399,11 @@ nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size
   j["bytes_per_keyframe"] = bytes_per_keyframe;
   j["status_counts"] = StatusCountsJson(results);
   j["loop_sources"] = SourceCountsJson(results);
+  // Raw pose resets (the caller's, or jumps the detector noticed): frame and reason.
+  j["pose_resets"] = nlohmann::json::array();
+  for (const auto& r : results)
+    if (r.pose_reset != PoseReset::kNone)
+      j["pose_resets"].push_back({{"frame", r.query_id}, {"reason", ToString(r.pose_reset)}});
   std::map<std::string, std::vector<double>> stages;
   for (const auto& r : results) {
     stages["extract"].push_back(r.timings.extract_ms);

@@ -68,6 +68,8 @@ LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
   best.match_from_query = raw(match_index, query_index);
   for (const AcceptedLoop& l : accepted_loops_) {
     if (!records_[l.query].has_pose() || !records_[l.match].has_pose()) continue;
+    // Raw odometry to the loop's ends must stay inside the query's raw pose segment.
+    if (!SameSegment(l.query, query_index) || !SameSegment(l.match, query_index)) continue;
     // query ~ loop query, match ~ loop match; or the loop used the other way round.
     const size_t forward = dist(query_index, l.query) + dist(l.match, match_index);
     const size_t backward = dist(query_index, l.match) + dist(l.query, match_index);
@@ -122,7 +124,9 @@ LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const Keyfram
                                       const std::vector<DescriptorMatch>& matches,
                                       const VerificationResult& v, bool from_local_map,
                                       LoopResult* trial) const {
-  if (!query.has_pose || !match.has_pose || v.pose_kind == RelativePoseKind::kNone)
+  // No prior across a raw pose reset either (MatchAgainst may be given any stored keyframe).
+  if (!query.has_pose || !match.has_pose || v.pose_kind == RelativePoseKind::kNone ||
+      !SameSegment(query_index, match_index))
     return LoopStatus::kDetected;
   // A pose from 3D points (PnP / Sim(3) against the local map or depths) has no two-view
   // ambiguity: the gate may be as wide as the odometry between the two places allows. A
@@ -276,9 +280,14 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   result->status = status;
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {
-    accepted_loops_.push_back(
-        {query_index, index_of_.at(result->match_id), result->match_from_query.rotation});
-    search_.OnLoopAccepted(query.id, result->match_id);
+    const size_t match_index = index_of_.at(result->match_id);
+    if (SameSegment(query_index, match_index)) {
+      accepted_loops_.push_back({query_index, match_index, result->match_from_query.rotation});
+      search_.OnLoopAccepted(query.id, result->match_id);
+    } else {  // a keyframe before a raw pose reset (MatchAgainst): a relocalisation
+      result->source = CandidateSource::kEarlierSegment;
+      result->relocalization = true;
+    }
   }
 }
 

@@ -72,7 +72,8 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
   const size_t end = query_index > exclude ? query_index - exclude : 0;
   auto usable = [&](int64_t i) {
-    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose();
+    return i >= 0 && static_cast<size_t>(i) < end && records_[static_cast<size_t>(i)].has_pose() &&
+           SameSegment(static_cast<size_t>(i), match_index);
   };
   // The map, in the match camera's frame: every window keyframe's triangulated keypoints as
   // points (bearing + depth) of one virtual record, with their own descriptors.
@@ -141,7 +142,8 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     std::vector<const KeyframeRecord*> before;
     for (int64_t k = 1; k <= lm.neighbours; ++k) {
       const int64_t i = static_cast<int64_t>(query_index) - k;
-      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose())
+      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose() &&
+          SameSegment(static_cast<size_t>(i), query_index))
         before.push_back(&Stored(static_cast<size_t>(i)));
     }
     const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);

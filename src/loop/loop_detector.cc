@@ -37,7 +37,31 @@ const char* ToString(LoopStatus status) {
 }
 
 const char* ToString(CandidateSource source) {
-  return source == CandidateSource::kAppearance ? "appearance" : "area";
+  switch (source) {
+    case CandidateSource::kSearchArea:
+      return "area";
+    case CandidateSource::kAppearance:
+      return "appearance";
+    case CandidateSource::kEarlierSegment:
+      return "segment";
+  }
+  return "unknown";
+}
+
+const char* ToString(PoseReset reset) {
+  switch (reset) {
+    case PoseReset::kNone:
+      return "none";
+    case PoseReset::kCaller:
+      return "caller";
+    case PoseReset::kTranslationJump:
+      return "translation";
+    case PoseReset::kRotationJump:
+      return "rotation";
+    case PoseReset::kScaleJump:
+      return "scale";
+  }
+  return "unknown";
 }
 
 const char* ToString(CandidateRetrieval retrieval) {
@@ -86,6 +110,14 @@ void LoopDetector::Options::Check() const {
                "planar_alternative_tolerance must be in (0, 1], got {}",
                planar_alternative_tolerance);
   SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
+  SL_CHECK_MSG(fallback_candidates >= 0 && fallback_rank_features >= 0,
+               "fallback_candidates and fallback_rank_features must be >= 0, got {} and {}",
+               fallback_candidates, fallback_rank_features);
+  SL_CHECK_MSG(pose_jump_factor >= 0 && pose_jump_max_deg >= 0,
+               "pose_jump_factor and pose_jump_max_deg must be >= 0 (0: off), got {} and {}",
+               pose_jump_factor, pose_jump_max_deg);
+  SL_CHECK_MSG(pose_jump_max_scale == 0 || pose_jump_max_scale >= 1,
+               "pose_jump_max_scale must be >= 1 (0: off), got {}", pose_jump_max_scale);
   SL_CHECK_MSG(agreement_window >= 1, "agreement_window must be >= 1 keyframe, got {}",
                agreement_window);
   SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
@@ -177,6 +209,9 @@ bool LoopDetector::ValidateInput(const KeyframeInput& input) const {
                "keyframe {}: timestamp {} must increase (previous keyframe: {})", input.id,
                input.timestamp, records_.empty() ? 0.0 : records_.back().timestamp());
   ValidateImageInput(input);
+  SL_CHECK_MSG(!input.pose_reset || input.world_from_cam,
+               "keyframe {}: pose_reset needs a pose (the first pose in the new world frame)",
+               input.id);
   if (input.world_from_cam) {
     const Sim3d& pose = *input.world_from_cam;
     SL_CHECK_MSG(pose.translation.allFinite() && pose.rotation.coeffs().allFinite() &&
@@ -207,6 +242,7 @@ size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
   any_pose_ |= rec.has_pose();
   any_missing_pose_ |= !rec.has_pose();
   index_of_[rec.id()] = index;
+  segment_.push_back(current_segment_);
   // No place on the trajectory without a pose (its path length is never read: FarAlong needs
   // both poses).
   if (!relocalize) search_.Add(rec.id(), last_position_);
@@ -271,10 +307,11 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   std::vector<int64_t> others;
   for (size_t ci = 0; ci + exclude < index; ++ci) {
     const PackedKeyframe& c = records_[ci];
-    if (c.has_pose() && FarAlong(query, index, ci) &&
+    if (c.has_pose() && SameSegment(ci, index) && FarAlong(query, index, ci) &&
         !std::binary_search(in_area.begin(), in_area.end(), c.id()))
       others.push_back(c.id());
   }
+  others = PreRankByAppearance(query, index, std::move(others));
   const double fallback_search_ms = stage.ElapsedMs();
   LoopResult fallback;
   fallback.query_id = query.id;
@@ -283,13 +320,101 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   result->timings.match_ms += fallback.timings.match_ms;
   result->timings.verify_ms += fallback.timings.verify_ms;
   std::vector<int64_t> by_appearance = std::move(fallback.verified_in_area);
+  const int matched_in_full = fallback.candidates;
   if (fallback.detected()) {
     fallback.timings = result->timings;
     fallback.source = CandidateSource::kAppearance;
     fallback.verified_in_area = std::move(result->verified_in_area);
+    fallback.candidates = result->candidates;
     *result = fallback;
   }
+  result->appearance_candidates = matched_in_full;
   result->verified_by_appearance = std::move(by_appearance);
+}
+
+std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& query, size_t index,
+                                                       std::vector<int64_t> ids) const {
+  const size_t keep = static_cast<size_t>(options_.fallback_candidates);
+  if (keep == 0 || ids.size() <= keep) return ids;
+  // The query's own K (its repeatable features when ranked so), then its best extracted ones.
+  const std::span<const Descriptor> own = records_[index].descriptors();
+  std::vector<Descriptor> probe(own.begin(), own.end());
+  const size_t extra =
+      std::min(query.descriptors.size(), static_cast<size_t>(options_.fallback_rank_features));
+  probe.insert(probe.end(), query.descriptors.begin(), query.descriptors.begin() + extra);
+  struct Scored {
+    ProbeScore score;
+    int64_t id;
+  };
+  std::vector<Scored> scored;
+  scored.reserve(ids.size());
+  for (const int64_t id : ids) {
+    scored.push_back({ScoreAgainstProbe(records_[index_of_.at(id)].descriptors(), probe,
+                                        options_.match.max_distance),
+                      id});
+  }
+  std::partial_sort(scored.begin(), scored.begin() + static_cast<std::ptrdiff_t>(keep),
+                    scored.end(), [](const Scored& a, const Scored& b) {
+                      return a.score != b.score ? a.score > b.score : a.id < b.id;
+                    });
+  std::vector<int64_t> best(keep);
+  for (size_t i = 0; i < keep; ++i) best[i] = scored[i].id;
+  return best;
+}
+
+PoseReset LoopDetector::DetectPoseReset(const KeyframeInput& input) const {
+  if (!input.world_from_cam || !last_pose_) return PoseReset::kNone;
+  if (input.pose_reset) return PoseReset::kCaller;
+  // The rules read the segment's motion: from 5 steps on (a handful of keyframes given far apart,
+  // e.g. photos of one place with their poses, is not a vSLAM losing track).
+  if (segment_steps_ < 5) return PoseReset::kNone;
+  const Sim3d& pose = *input.world_from_cam;
+  const Sim3d& last = *last_pose_;
+  const double max_scale = options_.pose_jump_max_scale;
+  if (max_scale > 0) {
+    const double ratio = pose.scale / last.scale;
+    if (ratio > max_scale || ratio < 1.0 / max_scale) return PoseReset::kScaleJump;
+  }
+  if (options_.pose_jump_max_deg > 0 &&
+      last.rotation.angularDistance(pose.rotation) > options_.pose_jump_max_deg * M_PI / 180.0)
+    return PoseReset::kRotationJump;
+  if (options_.pose_jump_factor > 0) {
+    std::vector<double> steps(recent_steps_.begin(), recent_steps_.end());
+    const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+    std::nth_element(steps.begin(), mid, steps.end());
+    // The mean keeps a long stop (steps near 0) from making the first step after it a "jump".
+    const double usual = std::max(*mid, segment_path_ / segment_steps_);
+    const double step = (pose.translation - last.translation).norm();
+    if (usual > 0 && step > options_.pose_jump_factor * usual) return PoseReset::kTranslationJump;
+  }
+  return PoseReset::kNone;
+}
+
+void LoopDetector::SearchEarlierSegments(const KeyframeRecord& query, size_t index,
+                                         LoopResult* result) {
+  // Their world frame is not this segment's: no search area, no pose check, as for earlier
+  // sessions; every keyframe counts, the ones just before the reset included (a relocalisation,
+  // not a loop: the nearest place in time ties the two frames best).
+  std::vector<int64_t> ids;
+  for (size_t i = 0; i < index; ++i)
+    if (records_[i].has_pose() && !SameSegment(i, index)) ids.push_back(records_[i].id());
+  ids = PreRankByAppearance(query, index, std::move(ids));
+  std::vector<PoolEntry> pool;
+  pool.reserve(ids.size());
+  for (const int64_t id : ids) pool.push_back({0, &records_[index_of_.at(id)]});
+  LoopResult earlier;
+  earlier.query_id = query.id;
+  MatchAndVerifyPool(query, pool, &earlier);
+  result->timings.match_ms += earlier.timings.match_ms;
+  result->timings.verify_ms += earlier.timings.verify_ms;
+  if (!earlier.detected()) return;
+  earlier.timings = result->timings;
+  earlier.source = CandidateSource::kEarlierSegment;
+  earlier.candidates = result->candidates;
+  earlier.appearance_candidates = result->appearance_candidates;
+  earlier.verified_in_area = std::move(result->verified_in_area);
+  earlier.verified_by_appearance = std::move(result->verified_by_appearance);
+  *result = std::move(earlier);
 }
 
 void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const {
@@ -320,6 +445,7 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   // Validate everything before any state changes, so a rejected keyframe leaves the stored map
   // exactly as it was (docs/ROBUSTNESS.md).
   const bool relocalize = ValidateInput(input);
+  const PoseReset reset = DetectPoseReset(input);
 
   // 1. Informative features: the query's extraction (all it matches with), and the K stored.
   Timer stage;
@@ -335,9 +461,28 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   result.timings.extract_ms = stage.ElapsedMs();
 
   // 2. Store (packed: the stored pose, keypoints and depths are the quantised ones from here on,
-  // the same after a round trip through the map).
+  // the same after a round trip through the map), in a new raw pose segment after a reset.
+  if (input.world_from_cam) {
+    const Sim3d& pose = *input.world_from_cam;
+    if (reset != PoseReset::kNone) {
+      ++current_segment_;
+      search_ = SearchArea(options_.search);
+      recent_steps_.clear();
+      segment_path_ = 0.0;
+      segment_steps_ = 0;
+    } else if (last_pose_) {
+      const double step = (pose.translation - last_pose_->translation).norm();
+      recent_steps_.push_back(step);
+      if (recent_steps_.size() > 20) recent_steps_.pop_front();
+      segment_path_ += step;
+      ++segment_steps_;
+    }
+    last_pose_ = pose;
+  }
   const size_t index = Store(std::move(rec), relocalize);
   const auto finish = [&] {
+    result.pose_segment = current_segment_;  // (the fallbacks replace the result)
+    result.pose_reset = reset;
     result.timings.total_ms = total.ElapsedMs();
     return result;
   };
@@ -365,12 +510,15 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
       options_.search.strategy != SearchStrategy::kGlobal) {
     AppearanceFallback(query, index, std::move(candidates), &result);
   }
+  if (!result.detected() && query.has_pose && current_segment_ > 0)
+    SearchEarlierSegments(query, index, &result);
   if (result.detected()) {
     SetWorldFromQuery(Stored(index_of_.at(result.match_id)), &result);
   } else if (options_.search_prior_sessions && !prior_records_.empty()) {
     SearchPriorSessions(query, &result);
   }
-  result.relocalization = !query.has_pose;
+  result.relocalization =
+      !query.has_pose || (result.detected() && result.source == CandidateSource::kEarlierSegment);
   return finish();
 }
 

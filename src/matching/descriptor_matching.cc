@@ -67,4 +67,17 @@ double MatchScore(const std::vector<DescriptorMatch>& matches, int max_distance)
   return s;
 }
 
+ProbeScore ScoreAgainstProbe(std::span<const Descriptor> stored, std::span<const Descriptor> probe,
+                             int max_distance) {
+  ProbeScore score;
+  for (const Descriptor& d : stored) {
+    int nearest = max_distance + 1;
+    for (const Descriptor& p : probe) nearest = std::min(nearest, HammingDistance(d, p));
+    if (nearest > max_distance) continue;
+    ++score.found;
+    score.closeness += max_distance + 1 - nearest;
+  }
+  return score;
+}
+
 }  // namespace sparseloop

@@ -24,8 +24,11 @@ void VerifySim3(const KeyframeRecord& query, const KeyframeRecord& match,
     idx.push_back(int(i));
   }
   Sim3RansacOptions so;
+  constexpr int kSim3Sample = 3;  // RansacSim3's minimal sample
   so.max_error = threshold;
-  so.max_iterations = options.max_iterations;
+  // Stop once a passing model would have been found (as essential and PnP RANSAC do): failing
+  // pairs ran all max_iterations, the verification tail of #19 on renders with depths.
+  so.max_iterations = IterationsToFindPassingModel(options, src.size(), kSim3Sample);
   so.min_inliers = options.min_inliers;
   so.seed = options.seed;
   auto r = RansacSim3(src, dst, so);

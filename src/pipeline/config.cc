@@ -261,6 +261,16 @@ void AddDetectorPolicyKeys(KeyList& k) {
   k.Add(d + "appearance_fallback", SL_FIELD(detector.appearance_fallback), "",
         "no loop in the search area: rank every stored keyframe by descriptor matches and "
         "verify the best");
+  k.Add(d + "fallback_candidates", SL_FIELD(detector.fallback_candidates), "keyframes",
+        "appearance fallback: keyframes matched in full after the cheap pre-ranking (0: all)");
+  k.Add(d + "fallback_rank_features", SL_FIELD(detector.fallback_rank_features), "features",
+        "appearance fallback pre-ranking: query features besides its K (>= 0)");
+  k.Add(d + "pose_jump_factor", SL_FIELD(detector.pose_jump_factor), "",
+        "a raw step this x the usual one starts a new pose segment (0: off)");
+  k.Add(d + "pose_jump_max_deg", SL_FIELD(detector.pose_jump_max_deg), "deg",
+        "a raw rotation step above this starts a new pose segment (0: off)");
+  k.Add(d + "pose_jump_max_scale", SL_FIELD(detector.pose_jump_max_scale), "",
+        "a Sim(3) scale step beyond this ratio starts a new pose segment (>= 1, 0: off)");
   k.Add(d + "check_every", SL_FIELD(detector.check_every), "keyframes",
         "run the loop check every N keyframes (>= 1)");
   k.Add(d + "min_matches", SL_FIELD(detector.min_matches), "matches",

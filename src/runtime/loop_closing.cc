@@ -55,6 +55,13 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   // Validates everything else before any state changes (throws with the detector unchanged).
   LoopEvent event;
   event.result = detector_.Process(keyframe);
+  if (event.result.pose_reset != PoseReset::kNone) {
+    // The raw step across a pose reset (KeyframeInput::pose_reset, or a jump the detector
+    // noticed) measures nothing: an edge of sigma 1,000 (raw units, rad, log-scale) only holds
+    // the new segment's gauge, so neither segment bends towards the jump. Loops into the earlier
+    // segments are relocalisations and stay out of the graph.
+    odometry_information = Matrix7d::Identity() * 1e-6;
+  }
   has_last_id_ = true;
   last_id_ = keyframe.id;
   ++num_keyframes_;
@@ -174,6 +181,10 @@ std::shared_ptr<const PoseCorrection> LoopClosing::LatestSolve() const {
 size_t LoopClosing::num_keyframes() const { return num_keyframes_; }
 size_t LoopClosing::num_loops() const { return num_loops_; }
 uint64_t LoopClosing::num_solves() const { return optimizer_ ? optimizer_->num_solves() : 0; }
+
+uint64_t LoopClosing::num_interrupted_solves() const {
+  return optimizer_ ? optimizer_->num_interrupted() : 0;
+}
 
 const PoseGraph& LoopClosing::graph() const {
   SL_CHECK_MSG(optimizer_ != nullptr, "graph(): LoopClosing runs without optimize");

@@ -1,4 +1,6 @@
 // Detector behaviour without real data: options, statuses, every-N rule, determinism.
+#include <memory>
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -53,6 +55,26 @@ cv::Mat WithBlobs(cv::Mat image, int count, cv::Rect area, int min_side, int max
                   cv::Scalar(i % 2 ? 255 : 0), cv::FILLED);
   }
   return image;
+}
+
+// 18 keyframes: 17 different places, and last the place of keyframe 1 seen again (Shifted).
+std::vector<cv::Mat> RevisitOfKeyframeOne() {
+  const cv::Mat place = Textured(41);
+  std::vector<cv::Mat> frames = {Textured(42), place};
+  for (uint64_t seed = 43; seed < 58; ++seed) frames.push_back(Textured(seed));
+  frames.push_back(Shifted(place));
+  return frames;
+}
+
+// A radius search area (the keyframes within `radius` of the query), 2 recent excluded, no
+// path-length filter.
+LoopDetector::Options RadiusSearch(double radius) {
+  LoopDetector::Options o;
+  o.search.strategy = SearchStrategy::kRadius;
+  o.search.radius = radius;
+  o.search.exclude_recent = 2;
+  o.min_path_ratio = 0;
+  return o;
 }
 
 KeyframeInput Input(int64_t id, const cv::Mat& image) {
@@ -316,6 +338,170 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
   EXPECT_EQ(global.verified_in_area.back(), global.match_id);
   EXPECT_LE(global.verified_in_area.size(), 3u);  // max_verify
   EXPECT_TRUE(global.verified_by_appearance.empty());
+}
+
+// The fallback's pre-ranking (fallback_candidates): among 14 eligible stored keyframes, only the
+// 2 best by the cheap score are matched in full and verified, and the loop is the one the full
+// fallback (every eligible keyframe matched, the brute-force reference) finds, with the same
+// matches and inliers. The revisit's place is stored second (id 1) so the pre-ranking, not the
+// id order, has to bring it forward.
+TEST(LoopDetector, AppearanceFallbackPreRankingKeepsTheLoopOfTheFullFallback) {
+  const std::vector<cv::Mat> frames = RevisitOfKeyframeOne();
+  auto run = [&](int candidates) {
+    LoopDetector::Options o = RadiusSearch(1.0);
+    o.appearance_fallback = true;
+    o.fallback_candidates = candidates;
+    LoopDetector detector(o);
+    LoopResult last;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
+      in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                                Eigen::Vector3d(100.0 * static_cast<double>(i), 0, 0));
+      last = detector.Process(in);
+    }
+    return last;
+  };
+  const LoopResult full = run(0);
+  const LoopResult ranked = run(2);
+  const int eligible = static_cast<int>(frames.size()) - 1 - 2;  // older than exclude_recent
+  ASSERT_TRUE(full.detected()) << ToString(full.status);
+  ASSERT_TRUE(ranked.detected()) << ToString(ranked.status);
+  EXPECT_EQ(full.appearance_candidates, eligible);
+  EXPECT_EQ(ranked.appearance_candidates, 2);
+  EXPECT_EQ(ranked.source, CandidateSource::kAppearance);
+  EXPECT_EQ(ranked.match_id, 1);
+  EXPECT_EQ(ranked.match_id, full.match_id);
+  EXPECT_EQ(ranked.matches, full.matches);
+  EXPECT_EQ(ranked.inliers, full.inliers);
+  EXPECT_EQ(ranked.candidates, 0);  // the search area held none
+  LoopDetector::Options bad;
+  bad.fallback_candidates = -1;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+// Raw pose resets (issue #17, bad input): a vSLAM that re-initialises continues in another world
+// frame. The place of keyframe 1 is seen again by the last keyframe; keyframes 10.. are in a new
+// segment, flagged by the caller or noticed as a jump. The search area then holds only the new
+// segment, and the earlier one is searched by appearance: the revisit is a relocalisation into it.
+// Without the segment the same poses lose the revisit (jump) or find it through a search area
+// built across two world frames (caller's flag off).
+TEST(LoopDetector, RawPoseResetStartsASegmentSearchedByAppearance) {
+  const std::vector<cv::Mat> frames = RevisitOfKeyframeOne();
+  const int64_t last = static_cast<int64_t>(frames.size()) - 1;
+  // x along the path, 10 units per keyframe; `jump`: keyframes >= 10 are 10,000 units away.
+  std::unique_ptr<LoopDetector> kept;  // the detector of the last run
+  const auto run = [&](bool jump, bool flag, double jump_factor) {
+    LoopDetector::Options o = RadiusSearch(5.0);
+    o.pose_jump_factor = jump_factor;
+    kept = std::make_unique<LoopDetector>(o);
+    LoopDetector& detector = *kept;
+    std::vector<LoopResult> results;
+    for (int64_t i = 0; i <= last; ++i) {
+      KeyframeInput in = Input(i, frames[static_cast<size_t>(i)]);
+      double x = 10.0 * static_cast<double>(i);
+      if (i == last) x = 10.0;  // the revisit, where keyframe 1 was (no jump: 15 steps back)
+      if (jump && i >= 10) x += 10000.0;
+      in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(x, 0, 0));
+      in.pose_reset = flag && i == 10;
+      results.push_back(detector.Process(in));
+    }
+    return results;
+  };
+  const std::vector<LoopResult> jumped = run(true, false, 20.0);
+  for (int64_t i = 0; i <= last; ++i) {
+    const LoopResult& r = jumped[static_cast<size_t>(i)];
+    EXPECT_EQ(r.pose_segment, i >= 10 ? 1 : 0) << i;
+    EXPECT_EQ(r.pose_reset, i == 10 ? PoseReset::kTranslationJump : PoseReset::kNone) << i;
+  }
+  const LoopResult& found = jumped.back();
+  ASSERT_TRUE(found.detected()) << ToString(found.status);
+  EXPECT_EQ(found.match_id, 1);
+  EXPECT_EQ(found.source, CandidateSource::kEarlierSegment);
+  EXPECT_TRUE(found.relocalization);
+  EXPECT_EQ(found.candidates, 0);  // the new segment's area held nothing near the revisit
+  EXPECT_TRUE(found.has_world_from_query);
+  // Asked directly (MatchAgainst), a keyframe before the reset is a relocalisation too: no pose
+  // check across the frames, and no accepted loop for the new segment's area and gate.
+  const LoopResult direct = kept->MatchAgainst(kept->record(last), {1});
+  ASSERT_TRUE(direct.detected()) << ToString(direct.status);
+  EXPECT_EQ(direct.source, CandidateSource::kEarlierSegment);
+  EXPECT_TRUE(direct.relocalization);
+  // The same jump, unnoticed: the area is built across both frames and holds nothing near.
+  const LoopResult lost = run(true, false, 0.0).back();
+  EXPECT_FALSE(lost.detected()) << ToString(lost.status);
+  EXPECT_EQ(lost.pose_reset, PoseReset::kNone);
+
+  // No jump in the numbers: only the caller knows. Unflagged, the area finds keyframe 1 as a
+  // loop in one world frame; flagged, the area of the new segment cannot hold it.
+  const LoopResult unflagged = run(false, false, 20.0).back();
+  ASSERT_TRUE(unflagged.detected()) << ToString(unflagged.status);
+  EXPECT_EQ(unflagged.source, CandidateSource::kSearchArea);
+  EXPECT_FALSE(unflagged.relocalization);
+  const std::vector<LoopResult> flagged = run(false, true, 20.0);
+  EXPECT_EQ(flagged[10].pose_reset, PoseReset::kCaller);
+  ASSERT_TRUE(flagged.back().detected()) << ToString(flagged.back().status);
+  EXPECT_EQ(flagged.back().match_id, 1);
+  EXPECT_EQ(flagged.back().source, CandidateSource::kEarlierSegment);
+  EXPECT_TRUE(flagged.back().relocalization);
+  EXPECT_EQ(flagged.back().pose_segment, 1);
+}
+
+// Which raw steps count as a reset: rotation and scale steps beyond their limits, once the segment
+// has 5 steps; a long step after a stop does not (the mean step, not only the median of the last
+// steps, sets the usual step).
+TEST(LoopDetector, PoseJumpRules) {
+  const auto reasons = [](const std::vector<Sim3d>& poses) {
+    LoopDetector detector(LoopDetector::Options{});
+    std::vector<PoseReset> out;
+    for (size_t i = 0; i < poses.size(); ++i) {
+      KeyframeInput in = Input(static_cast<int64_t>(i), Textured(100 + i));
+      in.world_from_cam = poses[i];
+      out.push_back(detector.Process(in).pose_reset);
+    }
+    return out;
+  };
+  const auto at = [](double x, double yaw_deg = 0.0, double scale = 1.0) {
+    return Sim3d(
+        scale,
+        Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ())),
+        Eigen::Vector3d(x, 0, 0));
+  };
+  using R = PoseReset;
+  // The rules start after 5 steps of the segment: keyframes 0-5, then the step under test.
+  const auto after_five = [&](const std::vector<Sim3d>& tail) {
+    std::vector<Sim3d> poses;
+    for (int i = 0; i <= 5; ++i) poses.push_back(at(i));
+    poses.insert(poses.end(), tail.begin(), tail.end());
+    return reasons(poses);
+  };
+  const std::vector<R> none6(6, R::kNone);
+  const auto with = [&](std::vector<R> tail) {
+    std::vector<R> all = none6;
+    all.insert(all.end(), tail.begin(), tail.end());
+    return all;
+  };
+  EXPECT_EQ(after_five({at(6, 10), at(7, 120)}), with({R::kNone, R::kRotationJump}));
+  EXPECT_EQ(after_five({at(6, 0, 0.4), at(7, 0, 0.5)}), with({R::kScaleJump, R::kNone}));
+  // Fewer than 5 steps: a keyframe turned by 170 deg is not a reset (sparse views of one place).
+  EXPECT_EQ(reasons({at(0), at(1, 170), at(2, 0, 0.1)}),
+            (std::vector<R>{R::kNone, R::kNone, R::kNone}));
+  // 6 steps of 1, a stop of 30 keyframes, then steps of 1 again; then a jump of 500.
+  std::vector<Sim3d> stop;
+  for (int i = 0; i <= 6; ++i) stop.push_back(at(i));
+  for (int i = 0; i < 30; ++i) stop.push_back(at(6));
+  for (int i = 7; i <= 9; ++i) stop.push_back(at(i));
+  stop.push_back(at(509));
+  const std::vector<R> got = reasons(stop);
+  for (size_t i = 0; i + 1 < got.size(); ++i) EXPECT_EQ(got[i], R::kNone) << i;
+  EXPECT_EQ(got.back(), R::kTranslationJump);
+  // The flag needs a pose (the first pose in the new frame).
+  LoopDetector detector(LoopDetector::Options{});
+  KeyframeInput no_pose = Input(0, Textured(1));
+  no_pose.pose_reset = true;
+  EXPECT_THROW(detector.Process(no_pose), std::invalid_argument);
+  LoopDetector::Options bad;
+  bad.pose_jump_max_scale = 0.5;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
 TEST(LoopDetector, CheckEveryNSkipsButStores) {

@@ -70,6 +70,32 @@ TEST(Matching, MutualAndRatio) {
   EXPECT_THROW(o.Check(), std::invalid_argument);
 }
 
+// The fallback's pre-ranking score, hand-worked: stored {s0, s1, s2}; the probe holds s0 with
+// 10 bits flipped (and a far copy with 100), s1 with exactly 64 (the bound: found), nothing near
+// s2. found = 2, closeness = (64 + 1 - 10) + (64 + 1 - 64) = 56; at max_distance 63 s1 drops out.
+// Planted copies (twins) both count: there is no ratio test.
+TEST(Matching, ScoreAgainstProbeCountsStoredDescriptorsWithANearProbe) {
+  auto rng = test::SeededRng(9);
+  const std::vector<Descriptor> stored = {Random(rng), Random(rng), Random(rng)};
+  const auto flip = [](Descriptor d, int bits) {  // the first `bits` bits, each once
+    for (int b = 0; b < bits; ++b) d[b / 64] ^= 1ull << (b % 64);
+    return d;
+  };
+  std::vector<Descriptor> probe = {flip(stored[0], 10), flip(stored[0], 100), flip(stored[1], 64)};
+  for (const Descriptor& p : probe) ASSERT_GT(HammingDistance(p, stored[2]), 64);
+  const ProbeScore s = ScoreAgainstProbe(stored, probe, 64);
+  EXPECT_EQ(s.found, 2);
+  EXPECT_EQ(s.closeness, 55 + 1);
+  const ProbeScore tighter = ScoreAgainstProbe(stored, probe, 63);
+  EXPECT_EQ(tighter.found, 1);
+  EXPECT_EQ(tighter.closeness, 54);
+  EXPECT_LT(tighter, s);
+  probe.push_back(stored[2]);
+  EXPECT_EQ(ScoreAgainstProbe(stored, probe, 64).found, 3);
+  EXPECT_EQ(ScoreAgainstProbe(stored, {}, 64), ProbeScore{});
+  EXPECT_EQ(ScoreAgainstProbe({}, probe, 64), ProbeScore{});
+}
+
 // Asymmetric matching against a brute-force oracle: 15 stored descriptors, 600 query ones, some
 // stored descriptors planted in the query once (noisy), some twice (a repeated structure: the
 // ratio test on the stored side must reject those), the rest absent.
@@ -363,6 +389,33 @@ TEST(Verification, PairAtTheInlierFloorIsFoundAsOftenWithFewerIterations) {
     o.min_inliers = 5;
     ASSERT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 5), o.max_iterations);
     full += VerifyPair(s.query, s.match, s.matches, o).inliers >= 8;
+  }
+  EXPECT_GE(full, 70);  // the scene is verifiable at all
+  EXPECT_GE(capped, full - 2);
+}
+
+// The same for Sim(3) RANSAC (depths on both sides): with min_inliers 8 of 15 a 3-point sample
+// is all inliers of a passing model with probability 8*7*6 / (15*14*13) = 0.123, so RANSAC stops
+// after 53 -> 100 iterations instead of 1000 and finds the pair as often as the full search.
+TEST(Verification, Sim3PairAtTheInlierFloorIsFoundAsOftenWithFewerIterations) {
+  VerifyOptions hand;
+  hand.min_inliers = 8;
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(hand, 15, 3), 100);
+  // n = 30: 336 / 24360 = 0.0138 -> log(0.001) / log(1 - 0.0138) = 497.4 -> 498.
+  EXPECT_EQ(matching_internal::IterationsToFindPassingModel(hand, 30, 3), 498);
+  int capped = 0, full = 0;
+  for (uint64_t seed = 0; seed < 100; ++seed) {
+    const Scene s = MakeScene(3000 + seed, 15, 7, true, true);
+    VerifyOptions o;
+    o.seed = seed;
+    o.min_inliers = 8;
+    const VerificationResult c = VerifyPair(s.query, s.match, s.matches, o);
+    capped += c.success && c.method == VerificationMethod::kSim3;
+    o.min_inliers = 5;  // with this confidence: all 1000 iterations, the search before the cap
+    o.confidence = 1 - 1e-12;
+    ASSERT_EQ(matching_internal::IterationsToFindPassingModel(o, 15, 3), o.max_iterations);
+    const VerificationResult f = VerifyPair(s.query, s.match, s.matches, o);
+    full += f.method == VerificationMethod::kSim3 && f.inliers >= 8;
   }
   EXPECT_GE(full, 70);  // the scene is verifiable at all
   EXPECT_GE(capped, full - 2);

@@ -462,6 +462,95 @@ TEST(LoopClosing, CallerOdometryCovarianceDecidesHowFarLoopsPull) {
   EXPECT_GT(tight, 2.0 * loose) << "raw " << raw_ate << " loose " << loose << " tight " << tight;
 }
 
+// A vSLAM that re-initialises on the second lap (issue #17, bad input): from keyframe 40 on the
+// raw poses are in another world frame (500 m away, turned by 1 rad). Flagged by the caller, or
+// noticed as a jump, the detector starts a pose segment: the second lap relocalises into the first
+// by appearance (CandidateSource::kEarlierSegment, world_from_query in the first lap's frame, as
+// the ground truth says), those relocalisations stay out of the graph, and the odometry edge
+// across the reset carries no weight. Unnoticed (rules off), the search area and the rotation
+// gate work across two world frames and the second lap finds nothing.
+TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
+  const Sequence s = LoadSequence();
+  const size_t reset = 40;
+  const Sim3d moved(1.0, Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ())),
+                    Eigen::Vector3d(500.0, -200.0, 3.0));
+  struct Run {
+    std::vector<LoopEvent> events;
+    std::vector<PoseGraphEdge> edges;
+  };
+  const auto run = [&](bool flag, bool rules) {
+    LoopClosing::Options options = LoopClosingOptionsFor(PipelineOptions{}, false);
+    if (!rules) {
+      options.detector.pose_jump_factor = 0;
+      options.detector.pose_jump_max_deg = 0;
+      options.detector.pose_jump_max_scale = 0;
+    }
+    LoopClosing closing(options);
+    Run r;
+    for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
+      KeyframeInput in = FrameInput(s, i);
+      if (i >= reset) in.world_from_cam = moved * *in.world_from_cam;
+      in.pose_reset = flag && i == reset;
+      r.events.push_back(closing.AddKeyframe(in));
+    }
+    closing.Finish();
+    r.edges = closing.graph().edges();
+    return r;
+  };
+  const auto relocalised = [&](const Run& r) {
+    int n = 0;
+    for (size_t i = reset; i < r.events.size(); ++i) {
+      const LoopResult& l = r.events[i].result;
+      if (!l.detected()) continue;
+      EXPECT_EQ(l.source, CandidateSource::kEarlierSegment) << i;
+      EXPECT_TRUE(l.relocalization) << i;
+      EXPECT_FALSE(r.events[i].loop_in_graph) << i;
+      EXPECT_LT(l.match_id, static_cast<int64_t>(reset)) << i;
+      // world_from_query in the first lap's frame: the raw pose of the match composed with the
+      // ground-truth motion from the match to the query.
+      const size_t m = static_cast<size_t>(l.match_id);
+      const Rigid3d& gm = *s.dataset.frames[m].gt_world_from_cam;
+      const Rigid3d& gq = *s.dataset.frames[i].gt_world_from_cam;
+      const Sim3d expected = Sim3d(s.raw.poses[m].world_from_cam) * Sim3d(gm.Inverse() * gq);
+      EXPECT_TRUE(l.has_world_from_query) << i;
+      const double gt_distance = (gq.translation - gm.translation).norm();
+      EXPECT_LT((l.world_from_query.translation - expected.translation).norm(),
+                0.2 + 0.2 * gt_distance)
+          << i << ": match " << m;
+      EXPECT_LT(l.world_from_query.rotation.angularDistance(expected.rotation), 0.1) << i;
+      ++n;
+    }
+    return n;
+  };
+  const Run flagged = run(true, true);
+  EXPECT_EQ(flagged.events[reset].result.pose_reset, PoseReset::kCaller);
+  EXPECT_EQ(flagged.events.back().result.pose_segment, 1);
+  const int flagged_n = relocalised(flagged);
+  EXPECT_GE(flagged_n, 15);  // of the 20 after the reset (20 when written)
+  // The odometry edge into keyframe 40 only holds the new segment's gauge.
+  bool found_edge = false;
+  for (const PoseGraphEdge& e : flagged.edges) {
+    if (e.to != static_cast<int64_t>(reset)) continue;
+    found_edge = true;
+    EXPECT_EQ(e.information, Matrix7d::Identity() * 1e-6);
+  }
+  EXPECT_TRUE(found_edge);
+
+  const Run noticed = run(false, true);
+  EXPECT_EQ(noticed.events[reset].result.pose_reset, PoseReset::kTranslationJump);
+  EXPECT_EQ(relocalised(noticed), flagged_n);
+
+  const Run unnoticed = run(false, false);
+  int found_unnoticed = 0;
+  for (size_t i = reset; i < unnoticed.events.size(); ++i) {
+    EXPECT_EQ(unnoticed.events[i].result.pose_reset, PoseReset::kNone);
+    found_unnoticed += unnoticed.events[i].result.detected();
+  }
+  RecordProperty("relocalised_after_reset", flagged_n);
+  RecordProperty("found_unnoticed", found_unnoticed);
+  EXPECT_LE(found_unnoticed, flagged_n / 4);
+}
+
 // A keyframe without pose goes to the detector only: no graph vertex, no corrected pose, and the
 // odometry chain joins the keyframes around it.
 TEST(LoopClosing, KeyframeWithoutPoseIsDetectedButNotInTheGraph) {

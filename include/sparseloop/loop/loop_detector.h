@@ -34,6 +34,13 @@ struct KeyframeInput {
   // as usual; with another strategy it is treated as "tracking lost" and relocalised against every
   // stored keyframe with a pose (Options::relocalize_without_pose; see LoopDetector::Relocalize).
   std::optional<Sim3d> world_from_cam;
+  // The vSLAM re-initialised (tracking lost, a new map): world_from_cam is in a new world frame
+  // (origin, orientation, scale) from this keyframe on. The detector starts a new pose segment:
+  // the search area and the pose checks use this segment's keyframes only, and the earlier
+  // segments are searched by appearance (a found place is a relocalisation, CandidateSource::
+  // kEarlierSegment). Needs world_from_cam. Without the flag the detector still notices a raw pose
+  // that jumps (Options::pose_jump_factor / pose_jump_max_deg / pose_jump_max_scale).
+  bool pose_reset = false;
   // Optional: what the vSLAM knows of the uncertainty of its raw step from the previous keyframe
   // with a pose to this one (LoopClosing's odometry edge; the detector ignores it): covariance of
   // the relative pose in tangent order [translation(3), rotation(3)] (raw units^2, rad^2; the order
@@ -74,8 +81,19 @@ CandidateRetrieval ParseCandidateRetrieval(const std::string& name);
 enum class CandidateSource {
   kSearchArea,  // the search area on the raw trajectory (the paper's wedge, or global search)
   kAppearance,  // the appearance fallback over every stored keyframe (Options::appearance_fallback)
+  kEarlierSegment,  // a keyframe before a raw pose reset, by appearance (a relocalisation)
 };
-const char* ToString(CandidateSource source);  // "area" | "appearance"
+const char* ToString(CandidateSource source);  // "area" | "appearance" | "segment"
+
+// Why a keyframe starts a new pose segment (KeyframeInput::pose_reset, Options::pose_jump_*).
+enum class PoseReset {
+  kNone,             // same world frame as the keyframe before
+  kCaller,           // KeyframeInput::pose_reset
+  kTranslationJump,  // the raw step is pose_jump_factor x longer than the segment's usual step
+  kRotationJump,     // the raw rotation step exceeds pose_jump_max_deg
+  kScaleJump,        // the Sim(3) scale changed by more than pose_jump_max_scale x
+};
+const char* ToString(PoseReset reset);  // "none" | "caller" | "translation" | "rotation" | "scale"
 
 struct StageTimings {
   double extract_ms = 0.0;  // feature extraction, ms
@@ -93,8 +111,16 @@ struct LoopResult {
   // Query without a pose: search-area keyframes dropped because they still share the scene with
   // the query (Options::overlap_gap), count; 0 otherwise.
   int overlap_excluded = 0;
-  // kAppearance when the search area gave no loop and the appearance fallback found match_id.
+  // Keyframes the appearance fallback matched with the whole extraction (after its pre-ranking,
+  // Options::fallback_candidates), count; 0 when the fallback did not run.
+  int appearance_candidates = 0;
+  // kAppearance when the search area gave no loop and the appearance fallback found match_id;
+  // kEarlierSegment when match_id is before a raw pose reset (then relocalization is true).
   CandidateSource source = CandidateSource::kSearchArea;
+  // Raw pose segments: the query's segment (0 until the first reset; a keyframe without a pose is
+  // in the segment of the posed keyframe before it), and whether and why it started one.
+  int pose_segment = 0;
+  PoseReset pose_reset = PoseReset::kNone;
   int matches = 0;     // descriptor matches with match_id, count
   int inliers = 0;     // geometric inliers with match_id, count
   double score = 0.0;  // inliers / K (K = options.features.max_features), in [0, 1]
@@ -272,6 +298,25 @@ class LoopDetector {
     // recall 0.64 in the area, 0.97 with global search); a small K makes ranking all of them
     // cheap (15 x 15 Hamming per stored keyframe). LoopResult::source says which one found it.
     bool appearance_fallback = false;
+    // The fallback's cheap pre-ranking (issue #19, its verification tail; issue #17, a fallback
+    // that stays cheap as the map grows): every eligible stored keyframe is scored by how many of
+    // its K descriptors have a neighbour within match.max_distance among the query's own stored K
+    // and its first fallback_rank_features extracted features (K x that many Hamming distances,
+    // no ratio test), and only the fallback_candidates best are matched with the query's whole
+    // extraction and verified. fallback_candidates = 0: every eligible keyframe is matched in
+    // full (the behaviour before session 18; its cost grows with the map).
+    int fallback_candidates = 20;
+    int fallback_rank_features = 0;  // features of the query besides its K, >= 0
+    // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; issue #17, bad input):
+    // a posed keyframe starts a new pose segment when its raw step from the posed keyframe before
+    // is longer than pose_jump_factor x the segment's usual step (the larger of the median of its
+    // last 20 steps and its mean step), when its rotation step exceeds pose_jump_max_deg, or when
+    // its Sim(3) scale differs by more than pose_jump_max_scale x; once the segment has 5 steps. A
+    // vSLAM that re-initialises near its old origin, orientation and scale is not noticed: flag it.
+    // 0 turns a rule off.
+    double pose_jump_factor = 20.0;
+    double pose_jump_max_deg = 90.0;   // degrees
+    double pose_jump_max_scale = 2.0;  // ratio, >= 1 (or 0)
     // Multi-session: on a check keyframe where the current session gives no loop, match the
     // keyframes of earlier sessions (AddPriorKeyframes) by appearance: their world frame (origin,
     // scale) differs, so no search area and no pose-prior rotation check apply; the same Hamming
@@ -366,8 +411,18 @@ class LoopDetector {
   // appearance_fallback: every eligible stored keyframe outside `in_area` is ranked and verified.
   void AppearanceFallback(const KeyframeRecord& query, size_t index, std::vector<int64_t> in_area,
                           LoopResult* result);
+  // fallback_candidates: the best-scored of `ids` by the cheap pre-ranking, best first.
+  std::vector<int64_t> PreRankByAppearance(const KeyframeRecord& query, size_t index,
+                                           std::vector<int64_t> ids) const;
   // search_prior_sessions: the keyframes of earlier sessions, by appearance.
   void SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const;
+  // Raw pose segments: why `input` starts a new one (kNone: it does not).
+  PoseReset DetectPoseReset(const KeyframeInput& input) const;
+  // The keyframes of earlier pose segments, by appearance (pre-ranked as the fallback is).
+  void SearchEarlierSegments(const KeyframeRecord& query, size_t index, LoopResult* result);
+  // Both stored keyframes are in the same raw pose segment (their raw relative pose means
+  // something).
+  bool SameSegment(size_t a, size_t b) const { return segment_[a] == segment_[b]; }
   // Matching and ranking of the candidates, then TryCandidate on the best max_verify until one
   // is detected; the most informative outcome goes to *result.
   void SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
@@ -470,6 +525,14 @@ class LoopDetector {
   bool any_pose_ = false;
   bool any_missing_pose_ = false;
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();  // of the last keyframe with a pose
+  // Raw pose segments (KeyframeInput::pose_reset, Options::pose_jump_*): the segment of each
+  // record; the current segment's last raw pose, its last steps (at most 20), path and step count.
+  std::vector<int> segment_;
+  int current_segment_ = 0;
+  std::optional<Sim3d> last_pose_;
+  std::deque<double> recent_steps_;
+  double segment_path_ = 0.0;
+  int segment_steps_ = 0;
   // SearchArea::PathLength of each record, read once when it is stored: FarAlong reads it for
   // every candidate (the appearance fallback: every stored keyframe) without a hash lookup.
   std::vector<double> path_length_;

@@ -1,5 +1,6 @@
 #pragma once
 // Brute-force Hamming matching of two small descriptor sets (K x K popcounts on 64-bit words).
+#include <compare>
 #include <span>
 #include <vector>
 
@@ -51,5 +52,18 @@ inline std::vector<DescriptorMatch> MatchStoredIntoQuery(const std::vector<Descr
 
 // Score of a match set: sum over matches of (max_distance + 1 - distance) / (max_distance + 1).
 double MatchScore(const std::vector<DescriptorMatch>& matches, int max_distance);
+
+// A cheap appearance score of a stored descriptor set against a small probe set (the appearance
+// fallback's pre-ranking, LoopDetector::Options::fallback_candidates): `found` = stored
+// descriptors whose nearest probe descriptor lies within max_distance bits, `closeness` = the sum
+// of (max_distance + 1 - that distance) over them. No ratio test, no mutual check: stored x probe
+// Hamming distances and nothing else. Ordered by found, then closeness (more is better).
+struct ProbeScore {
+  int found = 0;
+  int closeness = 0;
+  auto operator<=>(const ProbeScore&) const = default;
+};
+ProbeScore ScoreAgainstProbe(std::span<const Descriptor> stored, std::span<const Descriptor> probe,
+                             int max_distance);
 
 }  // namespace sparseloop

@@ -129,6 +129,8 @@ class LoopClosing {
   size_t num_keyframes() const;  // keyframes accepted by AddKeyframe
   size_t num_loops() const;      // loop edges sent to the optimiser
   uint64_t num_solves() const;   // solves run so far (BackgroundOptimizer::num_solves; 0 without)
+  // Of those, the ones a newer loop interrupted (re-solved at once; no callback, no new revision).
+  uint64_t num_interrupted_solves() const;
   // The optimiser's graph, after Finish() with optimize (throws std::invalid_argument otherwise).
   const PoseGraph& graph() const;
 
