@@ -58,8 +58,8 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   if (event.result.pose_reset != PoseReset::kNone) {
     // The raw step across a pose reset (KeyframeInput::pose_reset, or a jump the detector
     // noticed) measures nothing: an edge of sigma 1,000 (raw units, rad, log-scale) only holds
-    // the new segment's gauge, so neither segment bends towards the jump. Loops into the earlier
-    // segments are relocalisations and stay out of the graph.
+    // the new segment's gauge, so neither segment bends towards the jump. Metric relocalisations
+    // into an earlier segment (below) then bring the new segment into the earlier one's frame.
     odometry_information = Matrix7d::Identity() * 1e-6;
   }
   has_last_id_ = true;
@@ -79,12 +79,25 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   event.in_graph = true;
   // Local step length at the query: from the previous graph keyframe (RunPipeline: the previous
   // dataset frame; the same unless frames were skipped).
-  const double local_step = has_last_raw_ ? (raw.translation - last_raw_.translation).norm() : 0.0;
+  // Across a raw pose reset the jump is no step: the last step before it stands in.
+  double local_step = has_last_raw_ ? (raw.translation - last_raw_.translation).norm() : 0.0;
+  if (event.result.pose_reset != PoseReset::kNone) {
+    local_step = last_step_;
+  } else {
+    last_step_ = local_step;
+  }
   has_last_raw_ = true;
   last_raw_ = raw;
 
   const LoopResult& r = event.result;
-  if (!r.detected() || r.match_session != 0 || r.relocalization) return event;
+  // A relocalisation into an earlier raw pose segment of this session is a loop edge when its
+  // pose is metric (PnP / Sim(3)): it does not read the raw poses of the two ends, which are in
+  // different frames. A two-view (direction) loop takes its length from the raw step and the
+  // match's raw scale, which a re-initialised monocular vSLAM changes: it stays out.
+  const bool across_reset =
+      r.detected() && r.source == CandidateSource::kEarlierSegment &&
+      (r.pose_kind == RelativePoseKind::kSim3 || r.pose_kind == RelativePoseKind::kSE3Metric);
+  if (!r.detected() || r.match_session != 0 || (r.relocalization && !across_reset)) return event;
   const KeyframeRecord& match = detector_.record(r.match_id);
   if (!match.has_pose) return event;  // no graph vertex (a global-search match without pose)
   LoopConstraint edge;

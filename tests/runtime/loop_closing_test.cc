@@ -466,9 +466,11 @@ TEST(LoopClosing, CallerOdometryCovarianceDecidesHowFarLoopsPull) {
 // raw poses are in another world frame (500 m away, turned by 1 rad). Flagged by the caller, or
 // noticed as a jump, the detector starts a pose segment: the second lap relocalises into the first
 // by appearance (CandidateSource::kEarlierSegment, world_from_query in the first lap's frame, as
-// the ground truth says), those relocalisations stay out of the graph, and the odometry edge
-// across the reset carries no weight. Unnoticed (rules off), the search area and the rotation
-// gate work across two world frames and the second lap finds nothing.
+// the ground truth says), the odometry edge across the reset carries no weight, and the metric
+// relocalisations are loop edges that bring the second lap back into the first lap's frame: the
+// corrected trajectory is as close to the ground truth as without any reset. Unnoticed (rules
+// off), the search area and the rotation gate work across two world frames and the second lap
+// finds nothing.
 TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
   const Sequence s = LoadSequence();
   const size_t reset = 40;
@@ -477,8 +479,15 @@ TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
   struct Run {
     std::vector<LoopEvent> events;
     std::vector<PoseGraphEdge> edges;
+    double ate = 0.0;  // corrected, Sim(3)-aligned to the ground truth, all keyframes
   };
-  const auto run = [&](bool flag, bool rules) {
+  const auto gt_ate = [&](const std::vector<Eigen::Vector3d>& est) {
+    std::vector<Eigen::Vector3d> gt;
+    for (size_t i = 0; i < est.size(); ++i)
+      gt.push_back(s.dataset.frames[i].gt_world_from_cam->translation);
+    return Umeyama(est, gt, Alignment::kSim3).rms_residual;
+  };
+  const auto run = [&](bool flag, bool rules, size_t reset_at) {
     LoopClosing::Options options = LoopClosingOptionsFor(PipelineOptions{}, false);
     if (!rules) {
       options.detector.pose_jump_factor = 0;
@@ -489,12 +498,15 @@ TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
     Run r;
     for (size_t i = 0; i < s.dataset.frames.size(); ++i) {
       KeyframeInput in = FrameInput(s, i);
-      if (i >= reset) in.world_from_cam = moved * *in.world_from_cam;
-      in.pose_reset = flag && i == reset;
+      if (i >= reset_at) in.world_from_cam = moved * *in.world_from_cam;
+      in.pose_reset = flag && i == reset_at;
       r.events.push_back(closing.AddKeyframe(in));
     }
     closing.Finish();
     r.edges = closing.graph().edges();
+    std::vector<Eigen::Vector3d> est;
+    for (const Sim3d& p : closing.Corrections().world_from_keyframe) est.push_back(p.translation);
+    r.ate = gt_ate(est);
     return r;
   };
   const auto relocalised = [&](const Run& r) {
@@ -504,7 +516,9 @@ TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
       if (!l.detected()) continue;
       EXPECT_EQ(l.source, CandidateSource::kEarlierSegment) << i;
       EXPECT_TRUE(l.relocalization) << i;
-      EXPECT_FALSE(r.events[i].loop_in_graph) << i;
+      const bool metric =
+          l.pose_kind == RelativePoseKind::kSim3 || l.pose_kind == RelativePoseKind::kSE3Metric;
+      EXPECT_EQ(r.events[i].loop_in_graph, metric) << i;
       EXPECT_LT(l.match_id, static_cast<int64_t>(reset)) << i;
       // world_from_query in the first lap's frame: the raw pose of the match composed with the
       // ground-truth motion from the match to the query.
@@ -522,7 +536,8 @@ TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
     }
     return n;
   };
-  const Run flagged = run(true, true);
+  const Run clean = run(false, true, s.dataset.frames.size());  // no reset at all
+  const Run flagged = run(true, true, reset);
   EXPECT_EQ(flagged.events[reset].result.pose_reset, PoseReset::kCaller);
   EXPECT_EQ(flagged.events.back().result.pose_segment, 1);
   const int flagged_n = relocalised(flagged);
@@ -536,11 +551,26 @@ TEST(LoopClosing, PoseResetRelocalisesIntoTheEarlierSegment) {
   }
   EXPECT_TRUE(found_edge);
 
-  const Run noticed = run(false, true);
+  // The raw trajectory with the reset is hundreds of metres off; corrected, it is as good as the
+  // run without a reset.
+  std::vector<Eigen::Vector3d> raw;
+  for (size_t i = 0; i < s.raw.poses.size(); ++i)
+    raw.push_back((i >= reset ? moved * Sim3d(s.raw.poses[i].world_from_cam)
+                              : Sim3d(s.raw.poses[i].world_from_cam))
+                      .translation);
+  const double raw_ate = gt_ate(raw);
+  RecordProperty("ate_raw_with_reset", std::to_string(raw_ate));
+  RecordProperty("ate_clean", std::to_string(clean.ate));
+  RecordProperty("ate_flagged", std::to_string(flagged.ate));
+  // (When written: raw with the reset 75.8 m, without a reset 0.31 m, flagged 0.47 m.)
+  EXPECT_LT(flagged.ate, 2.0 * clean.ate) << "raw " << raw_ate << " clean " << clean.ate;
+  EXPECT_LT(flagged.ate, 0.02 * raw_ate) << "raw " << raw_ate << " clean " << clean.ate;
+
+  const Run noticed = run(false, true, reset);
   EXPECT_EQ(noticed.events[reset].result.pose_reset, PoseReset::kTranslationJump);
   EXPECT_EQ(relocalised(noticed), flagged_n);
 
-  const Run unnoticed = run(false, false);
+  const Run unnoticed = run(false, false, reset);
   int found_unnoticed = 0;
   for (size_t i = reset; i < unnoticed.events.size(); ++i) {
     EXPECT_EQ(unnoticed.events[i].result.pose_reset, PoseReset::kNone);

@@ -20,8 +20,11 @@
 // Keyframes without a raw pose (KeyframeInput::world_from_cam empty: tracking lost) go to the
 // detector only, which relocalises them or searches globally (LoopDetector::Process); they get no
 // graph vertex and no loop edge, and CorrectedPose(id) is empty for them. The odometry chain of
-// the graph joins the keyframes WITH poses in order, so raw poses must stay in one frame across
-// such a gap (a vSLAM that starts a new map should start a new LoopClosing).
+// the graph joins the keyframes WITH poses in order. Raw poses that continue in a new world frame
+// after the gap (the vSLAM re-initialised) must be flagged KeyframeInput::pose_reset (or the
+// detector must notice the jump): the odometry edge across the reset then has no weight, and
+// metric relocalisations into the earlier segment become loop edges that bring the new segment
+// into the earlier one's frame (docs/MULTISESSION.md, "Raw pose resets").
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -41,7 +44,8 @@ struct LoopEvent {
   LoopResult result;      // the detector's verdict for this keyframe (status, match, relative pose)
   bool in_graph = false;  // the keyframe became a pose-graph vertex (it has a pose; optimize on)
   // The loop went to the optimiser as a loop edge: detected, match in this session (not a prior
-  // map session), not a relocalisation, both keyframes in the graph.
+  // map session), both keyframes in the graph, and not a relocalisation, except a metric one
+  // into an earlier raw pose segment (LoopResult::source kEarlierSegment).
   bool loop_in_graph = false;
   // With loop_in_graph: index of the loop in the graph's loop list, the index that
   // PoseGraphSummary::rejected_loops (PCM) refers to; -1 otherwise.
@@ -147,6 +151,7 @@ class LoopClosing {
   int64_t last_id_ = 0;
   bool has_last_raw_ = false;  // the previous graph keyframe (local step length of a loop)
   Sim3d last_raw_;
+  double last_step_ = 0.0;  // the last raw step that was not a pose reset
   std::atomic<bool> finished_{false};
   std::atomic<size_t> num_keyframes_{0};
   std::atomic<size_t> num_loops_{0};
