@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <random>
+#include <span>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -283,17 +284,18 @@ BENCHMARK(BM_QueryStoredKeyframes)
     ->Unit(benchmark::kMicrosecond);
 
 // The appearance fallback's matching over N stored K = 15 records (issue #17: <= 2 ms at 10,000
-// stored keyframes; issue #19: its tail). Arg mode 0: the pre-ranking (LoopDetector's default):
-// every record scored against the query's own 15 (ScoreAgainstProbe), the 20 best matched with
-// the query's whole extraction (1,000); mode 1: every record matched with the whole extraction
-// (the fallback before session 18). Verification is not timed (synthetic records do not verify).
-// The query revisits record N / 2 (its 15 planted, with noise, in its extraction).
+// stored keyframes; issue #19: its tail). Arg variant 0: LoopDetector's default pre-ranking
+// (RankByProbe: a coarse stage on the first 4 stored descriptors of every record, the 200 best
+// scored in full against the query's own 15, the 20 best of those matched with the query's whole
+// extraction of 1,000); 2: the same without the coarse stage (session 18's first version); 1:
+// every record matched with the whole extraction (the fallback before session 18). Verification
+// is not timed (synthetic records do not verify). The query revisits record N / 2 (its 15
+// planted, with noise, in its extraction).
 void BM_AppearanceFallback(benchmark::State& state) {
   const int64_t n = state.range(0);
-  const bool pre_rank = state.range(1) == 0;
+  const int64_t variant = state.range(1);
   constexpr int kStored = 15, kQuery = 1000;
   const LoopDetector::Options defaults{LoopDetector::Options{}};
-  const size_t keep = static_cast<size_t>(defaults.fallback_candidates);
   std::mt19937_64 rng(11);
   std::vector<KeyframeRecord> records;
   records.reserve(n);
@@ -308,39 +310,44 @@ void BM_AppearanceFallback(benchmark::State& state) {
     }
     query.descriptors[static_cast<size_t>(40 * j)] = d;
   }
-  const std::vector<Descriptor> own(query.descriptors.begin(), query.descriptors.begin() + kStored);
+  // The query's own stored 15: the features it would keep (here the planted ones).
+  std::vector<Descriptor> own;
+  for (int j = 0; j < kStored; ++j) own.push_back(query.descriptors[static_cast<size_t>(40 * j)]);
   MatchOptions mo;
+  ProbeRankOptions ro;
+  ro.keep = static_cast<size_t>(defaults.fallback_candidates);
+  ro.coarse_features = variant == 0 ? static_cast<size_t>(defaults.fallback_coarse_features) : 0;
+  ro.coarse_keep = 10 * ro.keep;
+  ro.max_distance = mo.max_distance;
   int64_t best_id = -1;
+  size_t matched_in_full = 0;
   for (auto _ : state) {
-    std::vector<std::pair<ProbeScore, int64_t>> scored;
-    if (pre_rank) {
-      scored.reserve(records.size());
-      for (const KeyframeRecord& r : records)
-        scored.push_back({ScoreAgainstProbe(r.descriptors, own, mo.max_distance), -r.id});
-      const size_t k = std::min(keep, scored.size());
-      std::partial_sort(scored.begin(), scored.begin() + static_cast<std::ptrdiff_t>(k),
-                        scored.end(), std::greater<>());
-      scored.resize(k);
+    std::vector<size_t> ranked;
+    if (variant == 1) {
+      ranked.resize(records.size());
+      for (size_t i = 0; i < records.size(); ++i) ranked[i] = i;
     } else {
-      for (const KeyframeRecord& r : records) scored.push_back({ProbeScore{}, -r.id});
+      ranked = RankByProbe(
+          records.size(),
+          [&](size_t i) { return std::span<const Descriptor>(records[i].descriptors); }, own, ro);
     }
     size_t best = 0;
-    for (const auto& [score, minus_id] : scored) {
-      const size_t m =
-          MatchStoredIntoQuery(query.descriptors, records[-minus_id].descriptors, mo).size();
-      if (m > best) best = m, best_id = -minus_id;
+    for (const size_t i : ranked) {
+      const size_t m = MatchStoredIntoQuery(query.descriptors, records[i].descriptors, mo).size();
+      if (m > best) best = m, best_id = records[i].id;
     }
+    matched_in_full = ranked.size();
     benchmark::DoNotOptimize(best);
   }
   state.counters["found_revisit"] = best_id == revisit.id ? 1.0 : 0.0;
-  state.counters["matched_in_full"] =
-      pre_rank ? static_cast<double>(std::min<int64_t>(static_cast<int64_t>(keep), n))
-               : static_cast<double>(n);
+  state.counters["matched_in_full"] = static_cast<double>(matched_in_full);
 }
 BENCHMARK(BM_AppearanceFallback)
-    ->ArgNames({"stored", "full"})
+    ->ArgNames({"stored", "variant"})
     ->Args({1000, 0})
     ->Args({10000, 0})
+    ->Args({1000, 2})
+    ->Args({10000, 2})
     ->Args({1000, 1})
     ->Args({10000, 1})
     ->Unit(benchmark::kMillisecond);

@@ -110,9 +110,11 @@ void LoopDetector::Options::Check() const {
                "planar_alternative_tolerance must be in (0, 1], got {}",
                planar_alternative_tolerance);
   SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
-  SL_CHECK_MSG(fallback_candidates >= 0 && fallback_rank_features >= 0,
-               "fallback_candidates and fallback_rank_features must be >= 0, got {} and {}",
-               fallback_candidates, fallback_rank_features);
+  SL_CHECK_MSG(
+      fallback_candidates >= 0 && fallback_rank_features >= 0 && fallback_coarse_features >= 0,
+      "fallback_candidates, fallback_rank_features and fallback_coarse_features must be "
+      ">= 0, got {}, {} and {}",
+      fallback_candidates, fallback_rank_features, fallback_coarse_features);
   SL_CHECK_MSG(pose_jump_factor >= 0 && pose_jump_max_deg >= 0,
                "pose_jump_factor and pose_jump_max_deg must be >= 0 (0: off), got {} and {}",
                pose_jump_factor, pose_jump_max_deg);
@@ -304,14 +306,14 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   Timer stage;
   std::sort(in_area.begin(), in_area.end());
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
-  std::vector<int64_t> others;
+  std::vector<size_t> eligible;
   for (size_t ci = 0; ci + exclude < index; ++ci) {
     const PackedKeyframe& c = records_[ci];
     if (c.has_pose() && SameSegment(ci, index) && FarAlong(query, index, ci) &&
         !std::binary_search(in_area.begin(), in_area.end(), c.id()))
-      others.push_back(c.id());
+      eligible.push_back(ci);
   }
-  others = PreRankByAppearance(query, index, std::move(others));
+  std::vector<int64_t> others = PreRankByAppearance(query, index, eligible);
   const double fallback_search_ms = stage.ElapsedMs();
   LoopResult fallback;
   fallback.query_id = query.id;
@@ -333,33 +335,24 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
 }
 
 std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& query, size_t index,
-                                                       std::vector<int64_t> ids) const {
-  const size_t keep = static_cast<size_t>(options_.fallback_candidates);
-  if (keep == 0 || ids.size() <= keep) return ids;
+                                                       const std::vector<size_t>& indices) const {
   // The query's own K (its repeatable features when ranked so), then its best extracted ones.
   const std::span<const Descriptor> own = records_[index].descriptors();
   std::vector<Descriptor> probe(own.begin(), own.end());
   const size_t extra =
       std::min(query.descriptors.size(), static_cast<size_t>(options_.fallback_rank_features));
   probe.insert(probe.end(), query.descriptors.begin(), query.descriptors.begin() + extra);
-  struct Scored {
-    ProbeScore score;
-    int64_t id;
-  };
-  std::vector<Scored> scored;
-  scored.reserve(ids.size());
-  for (const int64_t id : ids) {
-    scored.push_back({ScoreAgainstProbe(records_[index_of_.at(id)].descriptors(), probe,
-                                        options_.match.max_distance),
-                      id});
-  }
-  std::partial_sort(scored.begin(), scored.begin() + static_cast<std::ptrdiff_t>(keep),
-                    scored.end(), [](const Scored& a, const Scored& b) {
-                      return a.score != b.score ? a.score > b.score : a.id < b.id;
-                    });
-  std::vector<int64_t> best(keep);
-  for (size_t i = 0; i < keep; ++i) best[i] = scored[i].id;
-  return best;
+  ProbeRankOptions ro;
+  ro.keep = static_cast<size_t>(options_.fallback_candidates);
+  ro.coarse_features = static_cast<size_t>(options_.fallback_coarse_features);
+  ro.coarse_keep = 10 * ro.keep;
+  ro.max_distance = options_.match.max_distance;
+  const std::vector<size_t> best = RankByProbe(
+      indices.size(), [&](size_t i) { return records_[indices[i]].descriptors(); }, probe, ro);
+  std::vector<int64_t> ids;
+  ids.reserve(best.size());
+  for (const size_t i : best) ids.push_back(records_[indices[i]].id());
+  return ids;
 }
 
 PoseReset LoopDetector::DetectPoseReset(const KeyframeInput& input) const {
@@ -395,10 +388,10 @@ void LoopDetector::SearchEarlierSegments(const KeyframeRecord& query, size_t ind
   // Their world frame is not this segment's: no search area, no pose check, as for earlier
   // sessions; every keyframe counts, the ones just before the reset included (a relocalisation,
   // not a loop: the nearest place in time ties the two frames best).
-  std::vector<int64_t> ids;
+  std::vector<size_t> earlier_segments;
   for (size_t i = 0; i < index; ++i)
-    if (records_[i].has_pose() && !SameSegment(i, index)) ids.push_back(records_[i].id());
-  ids = PreRankByAppearance(query, index, std::move(ids));
+    if (records_[i].has_pose() && !SameSegment(i, index)) earlier_segments.push_back(i);
+  const std::vector<int64_t> ids = PreRankByAppearance(query, index, earlier_segments);
   std::vector<PoolEntry> pool;
   pool.reserve(ids.size());
   for (const int64_t id : ids) pool.push_back({0, &records_[index_of_.at(id)]});

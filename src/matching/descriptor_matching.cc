@@ -25,19 +25,40 @@ std::vector<DescriptorMatch> MatchDescriptors(std::span<const Descriptor> query,
   const int nt = static_cast<int>(train.size());
   std::vector<int> best_t(nq, -1), best_d(nq, INT_MAX), second_d(nq, INT_MAX);
   std::vector<int> best_q_for_t(nt, -1), best_d_for_t(nt, INT_MAX);
-  for (int i = 0; i < nq; ++i) {
-    for (int j = 0; j < nt; ++j) {
-      const int d = HammingDistance(query[i], train[j]);
-      if (d < best_d[i]) {
-        second_d[i] = best_d[i];
-        best_d[i] = d;
-        best_t[i] = j;
-      } else if (d < second_d[i]) {
-        second_d[i] = d;
+  // Blocks of query rows: the distances first (popcounts only), then the row minima (best and
+  // second best per query) and the column minima (best query per train) over the block, each a
+  // simple loop the compiler keeps branch-light. Same result as one pass with both updates
+  // inline (first index wins ties), about twice as fast (bench_detector BM_AppearanceFallback).
+  constexpr int kBlock = 16;
+  std::vector<int> dist(static_cast<size_t>(kBlock) * static_cast<size_t>(nt));
+  for (int i0 = 0; i0 < nq; i0 += kBlock) {
+    const int rows = std::min(kBlock, nq - i0);
+    for (int r = 0; r < rows; ++r) {
+      const Descriptor& q = query[i0 + r];
+      int* row = dist.data() + static_cast<size_t>(r) * nt;
+      for (int j = 0; j < nt; ++j) row[j] = HammingDistance(q, train[j]);
+    }
+    for (int r = 0; r < rows; ++r) {
+      const int i = i0 + r;
+      const int* row = dist.data() + static_cast<size_t>(r) * nt;
+      int b = INT_MAX, second = INT_MAX, bj = -1;
+      for (int j = 0; j < nt; ++j) {
+        const int d = row[j];
+        if (d < b) {
+          second = b;
+          b = d;
+          bj = j;
+        } else if (d < second) {
+          second = d;
+        }
       }
-      if (d < best_d_for_t[j]) {
-        best_d_for_t[j] = d;
-        best_q_for_t[j] = i;
+      best_d[i] = b;
+      second_d[i] = second;
+      best_t[i] = bj;
+      for (int j = 0; j < nt; ++j) {
+        const bool better = row[j] < best_d_for_t[j];
+        best_d_for_t[j] = better ? row[j] : best_d_for_t[j];
+        best_q_for_t[j] = better ? i : best_q_for_t[j];
       }
     }
   }
@@ -78,6 +99,47 @@ ProbeScore ScoreAgainstProbe(std::span<const Descriptor> stored, std::span<const
     score.closeness += max_distance + 1 - nearest;
   }
   return score;
+}
+
+namespace {
+
+// The `keep` best of `candidates` (indices) by the probe score of the first `features` stored
+// descriptors of each (all when 0), best first, ties by lower index.
+std::vector<size_t> BestByProbe(const std::vector<size_t>& candidates,
+                                const std::function<std::span<const Descriptor>(size_t)>& stored,
+                                std::span<const Descriptor> probe, size_t features, size_t keep,
+                                int max_distance) {
+  std::vector<std::pair<ProbeScore, size_t>> scored;
+  scored.reserve(candidates.size());
+  for (const size_t i : candidates) {
+    std::span<const Descriptor> d = stored(i);
+    if (features > 0 && d.size() > features) d = d.first(features);
+    scored.push_back({ScoreAgainstProbe(d, probe, max_distance), i});
+  }
+  keep = std::min(keep, scored.size());
+  std::partial_sort(scored.begin(), scored.begin() + static_cast<std::ptrdiff_t>(keep),
+                    scored.end(), [](const auto& a, const auto& b) {
+                      return a.first != b.first ? a.first > b.first : a.second < b.second;
+                    });
+  std::vector<size_t> best(keep);
+  for (size_t k = 0; k < keep; ++k) best[k] = scored[k].second;
+  return best;
+}
+
+}  // namespace
+
+std::vector<size_t> RankByProbe(size_t n,
+                                const std::function<std::span<const Descriptor>(size_t)>& stored,
+                                std::span<const Descriptor> probe,
+                                const ProbeRankOptions& options) {
+  std::vector<size_t> candidates(n);
+  for (size_t i = 0; i < n; ++i) candidates[i] = i;
+  if (options.keep == 0 || n <= options.keep) return candidates;
+  if (options.coarse_features > 0 && n > std::max(options.coarse_keep, options.keep)) {
+    candidates = BestByProbe(candidates, stored, probe, options.coarse_features,
+                             std::max(options.coarse_keep, options.keep), options.max_distance);
+  }
+  return BestByProbe(candidates, stored, probe, 0, options.keep, options.max_distance);
 }
 
 }  // namespace sparseloop

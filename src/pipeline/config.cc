@@ -265,6 +265,9 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "appearance fallback: keyframes matched in full after the cheap pre-ranking (0: all)");
   k.Add(d + "fallback_rank_features", SL_FIELD(detector.fallback_rank_features), "features",
         "appearance fallback pre-ranking: query features besides its K (>= 0)");
+  k.Add(d + "fallback_coarse_features", SL_FIELD(detector.fallback_coarse_features), "features",
+        "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
+        "on this many stored descriptors each (0: off)");
   k.Add(d + "pose_jump_factor", SL_FIELD(detector.pose_jump_factor), "",
         "a raw step this x the usual one starts a new pose segment (0: off)");
   k.Add(d + "pose_jump_max_deg", SL_FIELD(detector.pose_jump_max_deg), "deg",

@@ -1,7 +1,10 @@
+#include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <random>
 #include <set>
+#include <span>
 
 #include <gtest/gtest.h>
 
@@ -47,6 +50,130 @@ TEST(Matching, BruteForceOracle) {
     EXPECT_EQ(x.query % 2, 1);
     EXPECT_EQ(x.train, x.query);
   }
+}
+
+// The blocked MatchDescriptors (distances of 16 query rows first, then row and column minima)
+// against the one-pass reference it replaced, on sets with many ties (descriptors of 12 random
+// bits, distances mostly 0-24): the same matches, the same tie-breaking (first index wins), for
+// row counts below, at and above the block of 16, with and without the ratio and mutual tests.
+TEST(Matching, BlockedMatchingEqualsTheOnePassReference) {
+  const auto reference = [](const std::vector<Descriptor>& query,
+                            const std::vector<Descriptor>& train, const MatchOptions& o) {
+    const int nq = static_cast<int>(query.size()), nt = static_cast<int>(train.size());
+    std::vector<int> best_t(nq, -1), best_d(nq, INT_MAX), second_d(nq, INT_MAX);
+    std::vector<int> best_q_for_t(nt, -1), best_d_for_t(nt, INT_MAX);
+    for (int i = 0; i < nq; ++i) {
+      for (int j = 0; j < nt; ++j) {
+        const int d = HammingDistance(query[i], train[j]);
+        if (d < best_d[i]) {
+          second_d[i] = best_d[i];
+          best_d[i] = d;
+          best_t[i] = j;
+        } else if (d < second_d[i]) {
+          second_d[i] = d;
+        }
+        if (d < best_d_for_t[j]) {
+          best_d_for_t[j] = d;
+          best_q_for_t[j] = i;
+        }
+      }
+    }
+    std::vector<DescriptorMatch> out;
+    for (int i = 0; i < nq; ++i) {
+      if (best_t[i] < 0 || best_d[i] > o.max_distance) continue;
+      if (o.ratio < 1.0 && second_d[i] != INT_MAX && !(best_d[i] < o.ratio * second_d[i])) continue;
+      if (o.mutual && best_q_for_t[best_t[i]] != i) continue;
+      out.push_back({i, best_t[i], best_d[i]});
+    }
+    return out;
+  };
+  auto rng = test::SeededRng(5);
+  const auto sparse = [&] {  // 12 random bits set: many equal distances
+    Descriptor d{0, 0, 0, 0};
+    for (int b = 0; b < 12; ++b) {
+      const uint64_t bit = rng() % 256;
+      d[bit / 64] |= 1ull << (bit % 64);
+    }
+    return d;
+  };
+  int compared = 0, nonempty = 0;
+  for (const int nq : {1, 15, 16, 17, 40}) {
+    for (const int nt : {1, 7, 300}) {
+      std::vector<Descriptor> query(static_cast<size_t>(nq)), train(static_cast<size_t>(nt));
+      for (auto& d : query) d = sparse();
+      for (auto& d : train) d = sparse();
+      for (const double ratio : {1.0, 0.9}) {
+        for (const bool mutual : {false, true}) {
+          MatchOptions o;
+          o.ratio = ratio;
+          o.mutual = mutual;
+          o.max_distance = 20;
+          const auto got = MatchDescriptors(query, train, o);
+          const auto want = reference(query, train, o);
+          ASSERT_EQ(got.size(), want.size()) << nq << "x" << nt;
+          for (size_t k = 0; k < got.size(); ++k) {
+            EXPECT_EQ(got[k].query, want[k].query);
+            EXPECT_EQ(got[k].train, want[k].train) << nq << "x" << nt << " row " << k;
+            EXPECT_EQ(got[k].distance, want[k].distance);
+          }
+          ++compared;
+          nonempty += !want.empty();
+        }
+      }
+    }
+  }
+  EXPECT_EQ(compared, 60);
+  EXPECT_GE(nonempty, 30);  // the comparison is not of empty results
+}
+
+// RankByProbe against the brute-force ranking (every record scored in full, sorted): one stage
+// gives exactly its first `keep`; the coarse stage keeps records whose best-ranked (first)
+// descriptors the probe holds: three planted revisits among 2,000 random records come first either
+// way, and with coarse_keep >= n the two stages are the one.
+TEST(Matching, RankByProbeIsTheBruteForceRankingAndTheCoarseStageKeepsRevisits) {
+  auto rng = test::SeededRng(21);
+  std::vector<std::vector<Descriptor>> records(2000);
+  for (auto& r : records) {
+    r.resize(15);
+    for (auto& d : r) d = Random(rng);
+  }
+  std::vector<Descriptor> probe;
+  for (int j = 0; j < 15; ++j) probe.push_back(Random(rng));
+  for (const size_t planted : {123u, 777u, 1999u}) {
+    for (int j = 0; j < 6; ++j)
+      records[planted][static_cast<size_t>(j)] =
+          FlipBits(probe[static_cast<size_t>(2 * j)], 20, rng);
+  }
+  const auto stored = [&](size_t i) { return std::span<const Descriptor>(records[i]); };
+  std::vector<std::pair<ProbeScore, size_t>> all;
+  for (size_t i = 0; i < records.size(); ++i)
+    all.push_back({ScoreAgainstProbe(records[i], probe, 64), i});
+  std::stable_sort(all.begin(), all.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  ProbeRankOptions o;
+  o.keep = 20;
+  o.coarse_features = 0;
+  const std::vector<size_t> one = RankByProbe(records.size(), stored, probe, o);
+  ASSERT_EQ(one.size(), 20u);
+  for (size_t k = 0; k < one.size(); ++k) EXPECT_EQ(one[k], all[k].second) << k;
+  const auto first3 = [](std::vector<size_t> v) {
+    v.resize(3);
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  EXPECT_EQ(first3(one), (std::vector<size_t>{123, 777, 1999}));
+  o.coarse_features = 4;
+  o.coarse_keep = 200;
+  const std::vector<size_t> two = RankByProbe(records.size(), stored, probe, o);
+  ASSERT_EQ(two.size(), 20u);
+  EXPECT_EQ(first3(two), (std::vector<size_t>{123, 777, 1999}));
+  o.coarse_keep = records.size();
+  EXPECT_EQ(RankByProbe(records.size(), stored, probe, o), one);
+  // n <= keep: every index, in order.
+  o.keep = 5000;
+  const std::vector<size_t> every = RankByProbe(records.size(), stored, probe, o);
+  ASSERT_EQ(every.size(), records.size());
+  EXPECT_EQ(every[1999], 1999u);
 }
 
 TEST(Matching, MutualAndRatio) {

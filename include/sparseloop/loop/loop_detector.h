@@ -307,6 +307,11 @@ class LoopDetector {
     // full (the behaviour before session 18; its cost grows with the map).
     int fallback_candidates = 20;
     int fallback_rank_features = 0;  // features of the query besides its K, >= 0
+    // With more than 10 x fallback_candidates eligible keyframes, a coarse stage first: each is
+    // scored by its first fallback_coarse_features stored descriptors (its best ranked), and the
+    // 10 x fallback_candidates best go on to the full score (a large map: issue #17's <= 2 ms at
+    // 10,000 stored keyframes). 0: score every eligible keyframe in full.
+    int fallback_coarse_features = 4;
     // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; issue #17, bad input):
     // a posed keyframe starts a new pose segment when its raw step from the posed keyframe before
     // is longer than pose_jump_factor x the segment's usual step (the larger of the median of its
@@ -411,9 +416,10 @@ class LoopDetector {
   // appearance_fallback: every eligible stored keyframe outside `in_area` is ranked and verified.
   void AppearanceFallback(const KeyframeRecord& query, size_t index, std::vector<int64_t> in_area,
                           LoopResult* result);
-  // fallback_candidates: the best-scored of `ids` by the cheap pre-ranking, best first.
+  // fallback_candidates: the ids of the best-scored of the records at `indices` by the cheap
+  // pre-ranking (RankByProbe), best first; all of them, in order, when there are no more.
   std::vector<int64_t> PreRankByAppearance(const KeyframeRecord& query, size_t index,
-                                           std::vector<int64_t> ids) const;
+                                           const std::vector<size_t>& indices) const;
   // search_prior_sessions: the keyframes of earlier sessions, by appearance.
   void SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const;
   // Raw pose segments: why `input` starts a new one (kNone: it does not).

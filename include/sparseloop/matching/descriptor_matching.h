@@ -1,6 +1,8 @@
 #pragma once
 // Brute-force Hamming matching of two small descriptor sets (K x K popcounts on 64-bit words).
 #include <compare>
+#include <cstddef>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -65,5 +67,21 @@ struct ProbeScore {
 };
 ProbeScore ScoreAgainstProbe(std::span<const Descriptor> stored, std::span<const Descriptor> probe,
                              int max_distance);
+
+// Ranking many stored keyframes by ScoreAgainstProbe (the appearance fallback's pre-ranking).
+struct ProbeRankOptions {
+  size_t keep = 20;  // keyframes returned, best first
+  // Coarse stage, when there are more than coarse_keep keyframes: score each by its first
+  // coarse_features stored descriptors only (a record keeps its best-ranked first), keep the
+  // coarse_keep best, then score those with all their descriptors. 0: one stage.
+  size_t coarse_features = 0;
+  size_t coarse_keep = 200;
+  int max_distance = 64;  // bits
+};
+// Indices (into 0..n-1) of the `keep` best keyframes, best first (ties: lower index first); all of
+// them, in index order, when n <= keep. `stored(i)` gives keyframe i's descriptors.
+std::vector<size_t> RankByProbe(size_t n,
+                                const std::function<std::span<const Descriptor>(size_t)>& stored,
+                                std::span<const Descriptor> probe, const ProbeRankOptions& options);
 
 }  // namespace sparseloop
