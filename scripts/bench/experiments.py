@@ -86,7 +86,8 @@ def run_all(r, quick):
             tasks.append(task)
             runs[("street07", f"drift{d:g}_{variant}")] = rd
     for seq, d, name in family:
-        for variant, cfg in (("new", {}), ("old", OLD_LOOP_DEFAULTS)):
+        for variant, cfg in (("new", {}), ("old", OLD_LOOP_DEFAULTS),
+                             ("oldarea", OLD_AREA_DEFAULTS)):
             task, rd = run_task(r, name, f"family_{variant}", cfg)
             tasks.append(task)
             runs[(name, f"family_{variant}")] = rd

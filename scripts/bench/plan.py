@@ -49,6 +49,11 @@ OLD_LOOP_DEFAULTS = {
 }
 
 
+# The search area before session 19 (issue #17): the paper's wedge alone on the raw poses, no
+# uncertainty area, and no revisit-distance gate (which only the wide area needs).
+OLD_AREA_DEFAULTS = {"detector": {"search": {"drift_rate": 0.0}, "max_loop_distance_steps": 0.0}}
+
+
 def drift_family(quick):
     """(sequence, drift scales) of the loop-correction family."""
     if quick:
@@ -67,7 +72,9 @@ def ablation_variants():
     s = lambda **kw: {"search": kw}  # noqa: E731
     return {
         "default": ("", {}, {}),
-        "search_paper_drift": ("search area", s(drift_tolerance=0.05), {}),
+        "search_paper_only": ("search area", {**s(drift_rate=0.0), "max_loop_distance_steps": 0.0},
+                              {}),
+        "search_paper_drift": ("search area", s(drift_tolerance=0.05, drift_rate=0.0), {}),
         "search_radius": ("search area", s(strategy="radius", radius=20.0), {}),
         "search_global": ("search area", s(strategy="global"), {}),
         "rank_popcount": ("feature ranking", f(ranking="popcount"), {}),
@@ -96,8 +103,9 @@ def sparse_variants():
 
 
 ABLATION_LABELS = {
-    "default": "default (paper search, response ranking, mapped pixels)",
-    "search_paper_drift": "paper + drift tolerance 5 %",
+    "default": "default (paper search + uncertainty area, response ranking, mapped pixels)",
+    "search_paper_only": "paper area only (before session 19)",
+    "search_paper_drift": "paper + drift tolerance 5 % (no uncertainty area)",
     "search_radius": "radius 20 (raw units)",
     "search_global": "global (every past keyframe)",
     "rank_popcount": "popcount ranking (the paper's)",

@@ -20,14 +20,28 @@ def eval_args(world):
             "--view-angle", str(rule["angle_deg"]), "--correct-distance", str(rule["correct_m"])]
 
 
+def has_area_column(frames_csv):
+    """frames.csv written by a sparseloop that reports the search area (its `area` column)."""
+    if not frames_csv.exists():
+        return False
+    with frames_csv.open() as f:
+        return "area" in f.readline().strip().split(",")
+
+
 def score_loops(sparseloop, run_dir, seq_dir, world):
+    frames = run_dir / "frames.csv"
+    area_args = ["--frames", str(frames)] if has_area_column(frames) else []
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "eval.json"
         subprocess.run([str(sparseloop), "eval", "--gt", str(seq_dir / "poses_gt.txt"),
-                        "--loops", str(run_dir / "loops.csv"), *eval_args(world),
+                        "--loops", str(run_dir / "loops.csv"), *eval_args(world), *area_args,
                         "--json", str(out)], check=True, stdout=subprocess.DEVNULL)
         e = json.loads(out.read_text())
+    area = e.get("search_area", {})
     return {
+        # GT loop queries whose GT match was among the search area's candidates (issue #17)
+        "area_coverage": num(area.get("coverage")),
+        "area_mean_candidates": num(area.get("mean_candidates")),
         "gt_queries": e["loops"]["num_gt_queries"],
         "events": e["loop_events"],
         "events_detected": e["loop_events_detected"],

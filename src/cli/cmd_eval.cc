@@ -72,6 +72,7 @@ namespace {
 struct EvalFlags {
   std::string gt_path, est_path, gt_format = "auto", est_format = "auto", align = "sim3";
   std::string associate = "auto", gt_loops_path, derive_loops, loops_path, json_path;
+  std::string frames_path;  // frames.csv of run / detect: search-area coverage of the GT loops
   std::string rpe_unit = "frames";
   EvaluationOptions options;
   GtLoopOptions gt_loop_options;
@@ -121,6 +122,9 @@ void AddEvalFlags(CLI::App& app, EvalFlags* f) {
   app.add_option("--frame-tolerance", f->loop_options.frame_tolerance,
                  "allowed |match - gt match| in frames for a correct loop")
       ->capture_default_str();
+  app.add_option("--frames", f->frames_path,
+                 "frames.csv of run / detect: fraction of GT loop queries whose GT match was in "
+                 "the search area (its area column; needs GT loops)");
   app.add_option("--json", f->json_path, "write all results as JSON to this file (atomically)");
 }
 
@@ -148,9 +152,12 @@ void CheckEvalFlags(EvalFlags* f) {
   // Trajectory metrics need --gt and --est; loops alone need --loops and --gt-loops.
   SL_CHECK_MSG(!f->trajectories() || !f->gt_path.empty(),
                "--est needs --gt (the ground truth to compare with)");
-  SL_CHECK_MSG(f->trajectories() || !f->loops_path.empty(),
+  SL_CHECK_MSG(f->trajectories() || !f->loops_path.empty() || !f->frames_path.empty(),
                "nothing to evaluate: give --gt and --est (trajectory metrics), and/or --loops with "
                "--gt-loops (loop precision/recall; without trajectories)");
+  SL_CHECK_MSG(f->frames_path.empty() || !f->gt_loops_path.empty() || !f->derive_loops.empty(),
+               "--frames needs ground-truth loops (--gt-loops FILE or --derive-loops DIST,GAP "
+               "with --gt)");
   SL_CHECK_MSG(f->derive_loops.empty() || !f->gt_path.empty(),
                "--derive-loops needs --gt (GT loops are derived from its poses)");
 }
@@ -216,7 +223,8 @@ std::optional<LoopScores> ScoreLoops(const EvalFlags& f, const Trajectory& gt,
 
 void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
                    const std::optional<std::vector<LoopPair>>& gt_loops,
-                   const std::optional<LoopScores>& loops) {
+                   const std::optional<LoopScores>& loops,
+                   const std::optional<AreaCoverage>& coverage) {
   const auto path_or_null = [](const std::string& p) {
     return p.empty() ? nlohmann::json(nullptr) : nlohmann::json(p);
   };
@@ -232,6 +240,14 @@ void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
     AddLoopKeys(j, *loops->by_distance);
   } else {
     AddLoopKeys(j, loops ? loops->all() : nullptr);
+  }
+  if (coverage) {
+    j["search_area"] = {{"frames_file", f.frames_path},
+                        {"gt_queries", coverage->queries},
+                        {"covered", coverage->covered},
+                        {"coverage", coverage->fraction ? nlohmann::json(*coverage->fraction)
+                                                        : nlohmann::json(nullptr)},
+                        {"mean_candidates", coverage->mean_candidates}};
   }
   WriteFileAtomically(f.json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
   std::cout << "wrote " << f.json_path << "\n";
@@ -291,7 +307,15 @@ int RunEval(int argc, char** argv) {
           s.accepted.false_positives, Num(s.accepted.recall_at_100p), s.events, s.events_detected);
     }
   }
-  if (!f.json_path.empty()) WriteEvalJson(f, e, gt_loops, loops);
+  std::optional<AreaCoverage> coverage;
+  if (!f.frames_path.empty() && gt_loops) {
+    coverage = SearchAreaCoverage(*gt_loops, ReadSearchAreas(f.frames_path));
+    std::cout << fmt::format(
+        "Search area  GT match in the area for {} of {} GT loop queries ({}), mean {:.1f} "
+        "candidates\n",
+        coverage->covered, coverage->queries, Num(coverage->fraction), coverage->mean_candidates);
+  }
+  if (!f.json_path.empty()) WriteEvalJson(f, e, gt_loops, loops, coverage);
   return 0;
 }
 

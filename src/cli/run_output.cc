@@ -305,7 +305,7 @@ std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
 void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results) {
   WriteFileAtomically(path, [&](std::ostream& os) {
     os << "frame,status,candidates,matches,inliers,match,source,verified_area,"
-          "verified_appearance,appearance_candidates,pose_segment,pose_reset\n";
+          "verified_appearance,appearance_candidates,pose_segment,pose_reset,area\n";
     const auto ids = [](const std::vector<int64_t>& v) {
       return fmt::format("{}", fmt::join(v, ";"));
     };
@@ -313,8 +313,8 @@ void WriteFramesCsv(const std::filesystem::path& path, const std::vector<LoopRes
       os << r.query_id << ',' << ToString(r.status) << ',' << r.candidates << ',' << r.matches
          << ',' << r.inliers << ',' << r.match_id << ',' << (r.detected() ? ToString(r.source) : "")
          << ',' << ids(r.verified_in_area) << ',' << ids(r.verified_by_appearance) << ','
-         << r.appearance_candidates << ',' << r.pose_segment << ',' << ToString(r.pose_reset)
-         << '\n';
+         << r.appearance_candidates << ',' << r.pose_segment << ',' << ToString(r.pose_reset) << ','
+         << FormatIdRanges(r.area) << '\n';
     }
   });
 }

@@ -108,7 +108,8 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
 std::string ImageColumns(const LoopResult& loop, const ImageNames& images);
 // frames.csv: why each processed frame did or did not close a loop, one row per frame:
 // frame,status,candidates,matches,inliers,match,source,verified_area,verified_appearance,
-// appearance_candidates (match
+// appearance_candidates,pose_segment,pose_reset,area (area: LoopResult::area as ids and
+// ranges, FormatIdRanges; match
 // -1 when no candidate was matched; source "area" / "appearance" on detected rows, else empty;
 // the keyframe ids geometrically verified, ';'-separated, LoopResult::verified_in_area /
 // verified_by_appearance).

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <numbers>
 #include <set>
@@ -83,6 +84,14 @@ bool ParseInt(const std::string& s, int64_t& value) {
   return ec == std::errc() && ptr == s.data() + s.size() && !s.empty();
 }
 
+size_t ColumnOf(const std::vector<std::string>& header, const std::string& name,
+                const std::filesystem::path& path, int header_line, const std::string& expected,
+                const std::string& line) {
+  const auto it = std::find(header.begin(), header.end(), name);
+  if (it == header.end()) throw FileError(path.string(), header_line, expected, "'" + line + "'");
+  return static_cast<size_t>(it - header.begin());
+}
+
 bool ParseDouble(const std::string& s, double& value) {
   if (s.empty()) return false;
   try {
@@ -94,37 +103,24 @@ bool ParseDouble(const std::string& s, double& value) {
   }
 }
 
-}  // namespace
-
-std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
+// A CSV file with a header line (blank lines skipped): `columns(header, header_line, text)`
+// once, then `row(fields, line_no)` per row, each with the header's field count (FileError
+// otherwise). `kind` names the file in the error for a missing file.
+void ReadCsv(
+    const std::filesystem::path& path, const std::string& kind,
+    const std::function<void(const std::vector<std::string>&, int, const std::string&)>& columns,
+    const std::function<void(const std::vector<std::string>&, int)>& row) {
   std::ifstream in(path);
-  if (!in) throw FileError(path.string(), 0, "a readable loops CSV file", "cannot open");
+  if (!in) throw FileError(path.string(), 0, "a readable " + kind + " CSV file", "cannot open");
   std::string line;
   int line_no = 0;
   std::vector<std::string> header;
-  while (std::getline(in, line)) {
+  while (header.empty() && std::getline(in, line)) {
     ++line_no;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    header = SplitCsv(line);
-    break;
+    if (line.find_first_not_of(" \t\r") != std::string::npos) header = SplitCsv(line);
   }
   if (header.empty()) throw FileError(path.string(), 0, "a CSV header line", "an empty file");
-  const int header_line = line_no;
-  auto column = [&](const std::string& name) {
-    const auto it = std::find(header.begin(), header.end(), name);
-    if (it == header.end()) {
-      throw FileError(path.string(), header_line, "a header with columns query, match and score",
-                      "'" + line + "'");
-    }
-    return static_cast<size_t>(it - header.begin());
-  };
-  const size_t query_col = column("query");
-  const size_t match_col = column("match");
-  const size_t score_col = column("score");
-  const auto accepted_it = std::find(header.begin(), header.end(), "accepted");
-  const bool has_accepted = accepted_it != header.end();
-  const size_t accepted_col = static_cast<size_t>(accepted_it - header.begin());
-  std::vector<Detection> out;
+  columns(header, line_no, line);
   while (std::getline(in, line)) {
     ++line_no;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
@@ -134,6 +130,30 @@ std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
                       fmt::format("{} comma-separated fields", header.size()),
                       fmt::format("{}", fields.size()));
     }
+    row(fields, line_no);
+  }
+}
+
+}  // namespace
+
+std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
+  size_t query_col = 0, match_col = 0, score_col = 0, accepted_col = 0;
+  bool has_accepted = false;
+  std::vector<Detection> out;
+  const auto columns = [&](const std::vector<std::string>& header, int header_line,
+                           const std::string& text) {
+    const auto column = [&](const std::string& name) {
+      return ColumnOf(header, name, path, header_line,
+                      "a header with columns query, match and score", text);
+    };
+    query_col = column("query");
+    match_col = column("match");
+    score_col = column("score");
+    const auto accepted_it = std::find(header.begin(), header.end(), "accepted");
+    has_accepted = accepted_it != header.end();
+    accepted_col = static_cast<size_t>(accepted_it - header.begin());
+  };
+  const auto row = [&](const std::vector<std::string>& fields, int line_no) {
     Detection d;
     if (!ParseInt(fields[query_col], d.query) || d.query < 0) {
       throw FileError(path.string(), line_no, "a non-negative integer query frame id",
@@ -156,7 +176,8 @@ std::vector<Detection> ReadDetections(const std::filesystem::path& path) {
       d.accepted = a == "1";
     }
     out.push_back(d);
-  }
+  };
+  ReadCsv(path, "loops", columns, row);
   return out;
 }
 
@@ -409,6 +430,99 @@ GtDistanceScore ScoreLoopsByGtDistance(const std::vector<Detection>& detections,
     }
   }
   return score;
+}
+
+AreaCoverage SearchAreaCoverage(const std::vector<LoopPair>& gt_loops,
+                                const std::map<int64_t, std::vector<int64_t>>& areas) {
+  std::map<int64_t, std::vector<int64_t>> matches;  // GT query -> its GT matches
+  for (const LoopPair& p : gt_loops)
+    matches[std::max(p.query, p.match)].push_back(std::min(p.query, p.match));
+  AreaCoverage c;
+  double candidates = 0.0;
+  for (const auto& [query, truth] : matches) {
+    const auto it = areas.find(query);
+    if (it == areas.end()) continue;
+    const std::vector<int64_t>& area = it->second;  // ascending (FormatIdRanges / ParseIdRanges)
+    ++c.queries;
+    candidates += static_cast<double>(area.size());
+    for (const int64_t m : truth) {
+      if (std::binary_search(area.begin(), area.end(), m)) {
+        ++c.covered;
+        break;
+      }
+    }
+  }
+  if (c.queries > 0) {
+    c.fraction = static_cast<double>(c.covered) / static_cast<double>(c.queries);
+    c.mean_candidates = candidates / static_cast<double>(c.queries);
+  }
+  return c;
+}
+
+std::string FormatIdRanges(std::vector<int64_t> ids) {
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  std::string out;
+  for (size_t i = 0; i < ids.size();) {
+    size_t j = i;
+    while (j + 1 < ids.size() && ids[j + 1] == ids[j] + 1) ++j;
+    if (!out.empty()) out += ';';
+    out += j == i ? fmt::format("{}", ids[i]) : fmt::format("{}-{}", ids[i], ids[j]);
+    i = j + 1;
+  }
+  return out;
+}
+
+bool ParseIdRanges(const std::string& text, std::vector<int64_t>* ids) {
+  ids->clear();
+  if (text.empty()) return true;
+  size_t start = 0;
+  while (true) {
+    const size_t semi = text.find(';', start);
+    const std::string item =
+        text.substr(start, semi == std::string::npos ? std::string::npos : semi - start);
+    const size_t dash = item.find('-', 1);  // not a leading sign
+    int64_t a = 0;
+    int64_t b = 0;
+    if (dash == std::string::npos) {
+      if (!ParseInt(item, a)) return false;
+      b = a;
+    } else if (!ParseInt(item.substr(0, dash), a) || !ParseInt(item.substr(dash + 1), b) || b < a) {
+      return false;
+    }
+    if (a < 0 || (!ids->empty() && a <= ids->back())) return false;  // ascending, no duplicates
+    for (int64_t v = a; v <= b; ++v) ids->push_back(v);
+    if (semi == std::string::npos) return true;
+    start = semi + 1;
+  }
+}
+
+std::map<int64_t, std::vector<int64_t>> ReadSearchAreas(const std::filesystem::path& path) {
+  size_t frame_col = 0, area_col = 0;
+  std::map<int64_t, std::vector<int64_t>> out;
+  const auto columns = [&](const std::vector<std::string>& header, int header_line,
+                           const std::string& text) {
+    const std::string expected =
+        "a header with columns frame and area (frames.csv of run / detect)";
+    frame_col = ColumnOf(header, "frame", path, header_line, expected, text);
+    area_col = ColumnOf(header, "area", path, header_line, expected, text);
+  };
+  const auto row = [&](const std::vector<std::string>& fields, int line_no) {
+    int64_t frame = 0;
+    if (!ParseInt(fields[frame_col], frame) || frame < 0) {
+      throw FileError(path.string(), line_no, "a non-negative integer frame id",
+                      "'" + fields[frame_col] + "'");
+    }
+    std::vector<int64_t> ids;
+    if (!ParseIdRanges(fields[area_col], &ids)) {
+      throw FileError(path.string(), line_no,
+                      "keyframe ids and ranges a-b, ';'-separated, ascending",
+                      "'" + fields[area_col] + "'");
+    }
+    out[frame] = std::move(ids);
+  };
+  ReadCsv(path, "frames", columns, row);
+  return out;
 }
 
 }  // namespace sparseloop

@@ -161,6 +161,19 @@ LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const Keyfram
   return LoopStatus::kRejectedByConsistency;
 }
 
+bool LoopDetector::TooFarForARevisit(const KeyframeRecord& query, const KeyframeRecord& match,
+                                     size_t query_index, size_t match_index,
+                                     const LoopResult& trial) const {
+  // Only a pose from 3D points has a metric translation (raw units of the match's segment).
+  const bool metric =
+      trial.pose_kind == RelativePoseKind::kSE3Metric || trial.pose_kind == RelativePoseKind::kSim3;
+  if (options_.max_loop_distance_steps <= 0 || !metric || !query.has_pose || !match.has_pose ||
+      !SameSegment(query_index, match_index) || query_index < 10)
+    return false;
+  const double mean_step = path_length_[query_index] / static_cast<double>(query_index);
+  return trial.match_from_query.translation.norm() > options_.max_loop_distance_steps * mean_step;
+}
+
 LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_index,
                                       size_t match_index,
                                       const std::vector<DescriptorMatch>& matches,
@@ -193,6 +206,9 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
   if (!v.success) return LoopStatus::kTooFewInliers;
   LoopStatus status =
       RotationGate(query, match, query_index, match_index, matches, v, map_inliers > 0, trial);
+  if (status == LoopStatus::kDetected &&
+      TooFarForARevisit(query, match, query_index, match_index, *trial))
+    status = LoopStatus::kRejectedByConsistency;
   if (status == LoopStatus::kDetected && weak_enabled) {
     // Passed the gate: support for the next queries (committed after this query's loop).
     if (!*support) *support = match_index;
@@ -283,7 +299,22 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
     const size_t match_index = index_of_.at(result->match_id);
     if (SameSegment(query_index, match_index)) {
       accepted_loops_.push_back({query_index, match_index, result->match_from_query.rotation});
-      search_.OnLoopAccepted(query.id, result->match_id);
+      // The loop's rotation against the raw one: query-pass raw directions into the match
+      // pass's (the uncertainty area predicts the path since the loop in the match's frame).
+      const PackedKeyframe& match = records_[match_index];
+      Eigen::Matrix3d correction = Eigen::Matrix3d::Identity();
+      if (query.has_pose && match.has_pose() && result->pose_kind != RelativePoseKind::kNone) {
+        correction = (match.world_from_cam().rotation * result->match_from_query.rotation *
+                      query.world_from_cam.rotation.conjugate())
+                         .toRotationMatrix();
+        // Only a Sim(3) from both sides' depths knows the scale between the two passes' raw
+        // units (PnP puts the query in the match's units, not its own path).
+        if (result->pose_kind == RelativePoseKind::kSim3) {
+          correction *= match.world_from_cam().scale * result->match_from_query.scale /
+                        query.world_from_cam.scale;
+        }
+      }
+      search_.OnLoopAccepted(query.id, result->match_id, correction);
     } else {  // a keyframe before a raw pose reset (MatchAgainst): a relocalisation
       result->source = CandidateSource::kEarlierSegment;
       result->relocalization = true;

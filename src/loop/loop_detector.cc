@@ -90,6 +90,8 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(query_max_features >= 5, "query_max_features must be >= 5, got {}",
                query_max_features);
   SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
+  SL_CHECK_MSG(std::isfinite(max_loop_distance_steps) && max_loop_distance_steps >= 0,
+               "max_loop_distance_steps must be >= 0, got {}", max_loop_distance_steps);
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
                "min_path_ratio must be >= 0, got {}", min_path_ratio);
   SL_CHECK_MSG(overlap_gap >= 0 && overlap_max_walk >= 0,
@@ -295,9 +297,29 @@ std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query,
     }
     candidates = std::move(kept);
   }
+  result->area = candidates;
+  std::sort(result->area.begin(), result->area.end());
   if (options_.retrieval == CandidateRetrieval::kAnn)
     candidates = RetrieveByVotes(query, index, candidates);  // index insert + vote query
   return candidates;
+}
+
+void LoopDetector::MergeSubSearch(LoopResult sub, CandidateSource source, LoopResult* result) {
+  // A sub-search after the search area's (the appearance fallback, earlier pose segments, earlier
+  // sessions): its matching and verification time is the query's; when it detected, its loop is
+  // the result, with what the area and the sub-searches before it reported.
+  result->timings.match_ms += sub.timings.match_ms;
+  result->timings.verify_ms += sub.timings.verify_ms;
+  if (!sub.detected()) return;
+  sub.timings = result->timings;
+  sub.source = source;
+  sub.candidates = result->candidates;
+  sub.overlap_excluded = result->overlap_excluded;
+  sub.area = std::move(result->area);
+  sub.appearance_candidates = result->appearance_candidates;
+  sub.verified_in_area = std::move(result->verified_in_area);
+  sub.verified_by_appearance = std::move(result->verified_by_appearance);
+  *result = std::move(sub);
 }
 
 void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
@@ -319,19 +341,10 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   fallback.query_id = query.id;
   SearchAndVerify(query, std::move(others), &fallback);
   result->timings.search_ms += fallback_search_ms;
-  result->timings.match_ms += fallback.timings.match_ms;
-  result->timings.verify_ms += fallback.timings.verify_ms;
-  std::vector<int64_t> by_appearance = std::move(fallback.verified_in_area);
-  const int matched_in_full = fallback.candidates;
-  if (fallback.detected()) {
-    fallback.timings = result->timings;
-    fallback.source = CandidateSource::kAppearance;
-    fallback.verified_in_area = std::move(result->verified_in_area);
-    fallback.candidates = result->candidates;
-    *result = fallback;
-  }
-  result->appearance_candidates = matched_in_full;
-  result->verified_by_appearance = std::move(by_appearance);
+  result->appearance_candidates = fallback.candidates;
+  result->verified_by_appearance = std::move(fallback.verified_in_area);
+  fallback.area.clear();
+  MergeSubSearch(std::move(fallback), CandidateSource::kAppearance, result);
 }
 
 std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& query, size_t index,
@@ -398,16 +411,7 @@ void LoopDetector::SearchEarlierSegments(const KeyframeRecord& query, size_t ind
   LoopResult earlier;
   earlier.query_id = query.id;
   MatchAndVerifyPool(query, pool, &earlier);
-  result->timings.match_ms += earlier.timings.match_ms;
-  result->timings.verify_ms += earlier.timings.verify_ms;
-  if (!earlier.detected()) return;
-  earlier.timings = result->timings;
-  earlier.source = CandidateSource::kEarlierSegment;
-  earlier.candidates = result->candidates;
-  earlier.appearance_candidates = result->appearance_candidates;
-  earlier.verified_in_area = std::move(result->verified_in_area);
-  earlier.verified_by_appearance = std::move(result->verified_by_appearance);
-  *result = std::move(earlier);
+  MergeSubSearch(std::move(earlier), CandidateSource::kEarlierSegment, result);
 }
 
 void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const {
@@ -419,16 +423,8 @@ void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* 
   LoopResult prior;
   prior.query_id = query.id;
   MatchAndVerifyPool(query, pool, &prior);
-  if (prior.detected()) {
-    prior.timings.extract_ms = result->timings.extract_ms;
-    prior.timings.search_ms = result->timings.search_ms;
-    prior.timings.match_ms += result->timings.match_ms;
-    prior.timings.verify_ms += result->timings.verify_ms;
-    *result = prior;
-  } else {
-    result->timings.match_ms += prior.timings.match_ms;
-    result->timings.verify_ms += prior.timings.verify_ms;
-  }
+  const CandidateSource source = prior.source;
+  MergeSubSearch(std::move(prior), source, result);
 }
 
 LoopResult LoopDetector::Process(const KeyframeInput& input) {

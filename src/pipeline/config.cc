@@ -179,6 +179,13 @@ void AddSearchKeys(KeyList& k) {
         "radius: measured in the motion plane (true) or in 3D (false)");
   k.Add(s + "drift_tolerance", SL_FIELD(detector.search.drift_tolerance), "fraction",
         "widening by this fraction of the path since the last loop (0: off)");
+  k.Add(s + "drift_rate", SL_FIELD(detector.search.drift_rate), "fraction",
+        "uncertainty area: keyframes within base + this fraction of the raw path between them "
+        "and the query, or through a recent loop (0: off)");
+  k.Add(s + "drift_base_steps", SL_FIELD(detector.search.drift_base_steps), "mean steps",
+        "uncertainty area: radius at zero path, in mean raw steps (>= 0)");
+  k.Add(s + "drift_loops", SL_FIELD(detector.search.drift_loops), "loops",
+        "uncertainty area: the last accepted loops it also searches through (>= 0)");
   k.Add(PlaneNormalKey());
   k.Add(s + "fallback_count", SL_FIELD(detector.search.fallback_count), "keyframes",
         "paper: keyframes searched when the motion ray hits nothing (>= 1)");
@@ -299,6 +306,8 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
+  k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "mean steps",
+        "reject a metric loop whose query is farther than this from the match (0: off)");
   k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
         "reject loops whose rotation disagrees with the pose prior");
   k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",

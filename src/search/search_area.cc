@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <unordered_map>
 
@@ -222,6 +223,11 @@ void SearchAreaOptions::Check() const {
                radius);
   SL_CHECK_MSG(drift_tolerance >= 0.0 && std::isfinite(drift_tolerance),
                "drift_tolerance must be finite and >= 0, got {}", drift_tolerance);
+  SL_CHECK_MSG(drift_rate >= 0.0 && std::isfinite(drift_rate),
+               "drift_rate must be finite and >= 0, got {}", drift_rate);
+  SL_CHECK_MSG(drift_base_steps >= 0.0 && std::isfinite(drift_base_steps),
+               "drift_base_steps must be finite and >= 0, got {}", drift_base_steps);
+  SL_CHECK_MSG(drift_loops >= 0, "drift_loops must be >= 0, got {}", drift_loops);
   if (plane_normal) {
     SL_CHECK_MSG(plane_normal->allFinite() && plane_normal->norm() > 1e-12,
                  "plane_normal must be finite and non-zero");
@@ -251,6 +257,11 @@ struct SearchArea::Impl {
   size_t built_size = 0;  // size at the last rebuild
   Grid grid;
   int32_t loop_index = 0;  // index where the drift distance restarts
+  struct Loop {
+    int32_t q = 0, m = 0;  // query, match indices
+    Eigen::Matrix3d correction = Eigen::Matrix3d::Identity();
+  };
+  std::deque<Loop> loops;  // the last drift_loops accepted loops
 
   void Rebuild();
   void FitPlane();
@@ -285,7 +296,50 @@ struct SearchArea::Impl {
                              int32_t eligible, SearchAreaResult* result) const;
   // Drift widening of an index range: keyframes within `margin` path length of its ends.
   void WidenByPath(double margin, int32_t eligible, int32_t* lo, int32_t* hi) const;
+  // The uncertainty area (options.drift_rate) of query t: appends to *out, returns the count.
+  size_t CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
+                          size_t* cells) const;
 };
+
+size_t SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
+                                          size_t* cells) const {
+  if (options.drift_rate <= 0.0 || t < 1 || eligible <= 0) return 0;
+  const double base = options.drift_base_steps * path_length[t] / t;
+  const double rate = options.drift_rate;
+  // The paths that tie a keyframe k to the query: the odometry between them (q = m = t), or
+  // odometry to a remembered loop's match m, the loop, odometry from its query q to t. Each
+  // predicts where k should be (`centre`: x_t, or x_m + C (x_t - x_q)); k is tested on the path
+  // with the least odometry, odometry(k) = |L(t) - L(q)| + |L(m) - L(k)|.
+  struct Path {
+    Eigen::Vector3d centre;
+    double since = 0.0;  // odometry from q to t
+    int32_t m = 0;
+  };
+  std::vector<Path> paths = {{positions[t], 0.0, t}};
+  for (const Loop& l : loops)
+    paths.push_back({positions[l.m] + l.correction * (positions[t] - positions[l.q]),
+                     std::abs(path_length[t] - path_length[l.q]), l.m});
+  std::vector<int32_t> near;
+  for (const Path& p : paths) {  // a superset: every keyframe within the largest r of a path
+    const double far = std::max(path_length[p.m] - path_length[0],
+                                std::abs(path_length[eligible - 1] - path_length[p.m]));
+    CollectNearPoint(plane.Project(p.centre), base + rate * (p.since + far), eligible, &near,
+                     cells);
+  }
+  std::sort(near.begin(), near.end());
+  near.erase(std::unique(near.begin(), near.end()), near.end());
+  const size_t before = out->size();
+  for (const int32_t k : near) {
+    const Path* best = nullptr;
+    double odometry = kInf;
+    for (const Path& p : paths) {
+      const double o = p.since + std::abs(path_length[p.m] - path_length[k]);
+      if (o < odometry) odometry = o, best = &p;
+    }
+    if ((positions[k] - best->centre).norm() <= base + rate * odometry) out->push_back(k);
+  }
+  return out->size() - before;
+}
 
 Eigen::Vector2d SearchArea::Impl::MotionDirection(int32_t t) const {
   const Eigen::Vector2d qt = projected[t];
@@ -594,12 +648,19 @@ void SearchArea::Add(int64_t keyframe_id, const Eigen::Vector3d& p_in_world) {
   }
 }
 
-void SearchArea::OnLoopAccepted(int64_t query_id, int64_t match_id) {
+void SearchArea::OnLoopAccepted(int64_t query_id, int64_t match_id,
+                                const Eigen::Matrix3d& raw_correction) {
+  SL_CHECK_MSG(raw_correction.allFinite(), "OnLoopAccepted: the raw correction is not finite");
   const auto q = impl_->index_of.find(query_id);
   SL_CHECK_MSG(q != impl_->index_of.end(), "OnLoopAccepted: unknown query keyframe {}", query_id);
   SL_CHECK_MSG(impl_->index_of.count(match_id) == 1, "OnLoopAccepted: unknown match keyframe {}",
                match_id);
   impl_->loop_index = std::max(impl_->loop_index, q->second);
+  if (impl_->options.drift_loops > 0) {
+    impl_->loops.push_back({q->second, impl_->index_of.at(match_id), raw_correction});
+    if (impl_->loops.size() > static_cast<size_t>(impl_->options.drift_loops))
+      impl_->loops.pop_front();
+  }
 }
 
 SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
@@ -620,6 +681,16 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   const int32_t eligible = std::max<int32_t>(0, t - o.exclude_recent);  // indices < eligible
   std::vector<int32_t> selected;
   auto finish = [&]() {
+    // The uncertainty area: what it adds beyond the paper's / radius area is counted.
+    std::vector<int32_t> uncertain;
+    m.CollectUncertain(t, eligible, &uncertain, &result.cells_visited);
+    std::sort(selected.begin(), selected.end());
+    selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
+    std::sort(uncertain.begin(), uncertain.end());
+    uncertain.erase(std::unique(uncertain.begin(), uncertain.end()), uncertain.end());
+    for (const int32_t k : uncertain)
+      if (!std::binary_search(selected.begin(), selected.end(), k)) ++result.uncertainty_added;
+    selected.insert(selected.end(), uncertain.begin(), uncertain.end());
     std::sort(selected.begin(), selected.end());
     selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
     result.candidates.reserve(selected.size());
@@ -633,8 +704,9 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   }
 
   if (o.strategy == SearchStrategy::kGlobal) {
-    for (int32_t k = 0; k < eligible; ++k) selected.push_back(k);
-    return finish();
+    result.candidates.assign(m.ids.begin(), m.ids.begin() + eligible);
+    result.status = SearchAreaStatus::kOk;
+    return result;
   }
   if (o.strategy == SearchStrategy::kRadius) {
     const double r = o.radius + margin;

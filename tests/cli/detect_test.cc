@@ -79,7 +79,7 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   std::getline(frames, header);
   EXPECT_EQ(header,
             "frame,status,candidates,matches,inliers,match,source,verified_area,"
-            "verified_appearance,appearance_candidates,pose_segment,pose_reset");
+            "verified_appearance,appearance_candidates,pose_segment,pose_reset,area");
   int detected = 0;
   for (std::string line; std::getline(frames, line);) {
     std::vector<std::string> fields;

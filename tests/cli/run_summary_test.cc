@@ -280,6 +280,37 @@ TEST(CliRunSummary, EvalScoresLoopsWithoutTrajectories) {
   EXPECT_EQ(RunCli({"eval", "--est", (out / "trajectory.txt").string()}).exit_code, 2);
 }
 
+// eval --frames: the search area's coverage of the GT loops from run's frames.csv (its `area`
+// column); bad input names the flag or the file and line.
+TEST(CliRunSummary, EvalMeasuresSearchAreaCoverageFromFramesCsv) {
+  const fs::path& out = RunOnRenderedSequence();
+  const auto dir = TempDir();
+  const CliResult r = RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string(), "--frames",
+                              (out / "frames.csv").string(), "--json",
+                              (dir / "m.json").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("Search area"), std::string::npos) << r.out;
+  const auto area = ReadJson(dir / "m.json")["search_area"];
+  ASSERT_TRUE(area.is_object());
+  const auto queries = area["gt_queries"].get<int>();
+  EXPECT_GT(queries, 0);
+  EXPECT_LE(area["covered"].get<int>(), queries);
+  EXPECT_GT(area["covered"].get<int>(), 0);  // the rendered loop's revisits are in the area
+  EXPECT_GT(area["mean_candidates"].get<double>(), 0.0);
+  // No GT loops to cover: the flag is named.
+  const CliResult no_gt = RunCli({"eval", "--frames", (out / "frames.csv").string()});
+  EXPECT_EQ(no_gt.exit_code, 2);
+  EXPECT_NE(no_gt.err.find("--frames"), std::string::npos) << no_gt.err;
+  // A frames.csv without the area column (an older run): file and line.
+  const fs::path old = dir / "old_frames.csv";
+  std::ofstream(old) << "frame,status\n0,no_candidates\n";
+  const CliResult bad = RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string(),
+                                "--frames", old.string()});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("old_frames.csv:1"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("area"), std::string::npos) << bad.err;
+}
+
 // run's loop recall counts revisits, not driving on: GT pairs need GT path between the frames
 // (default 4 x the GT loop distance); --gt-min-path 0 --gt-min-gap 1 counts consecutive frames.
 TEST(CliRunSummary, GtRevisitsNeedPathBetweenTheFrames) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <fstream>
 #include <numbers>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -371,6 +372,71 @@ TEST(ReadDetections, MalformedFilesNameFileAndLine) {
   expect_error("query,match,score\n1,2,nan\n", 2, "score");
   expect_error("", 0, "header");
   EXPECT_THROW(ReadDetections(dir / "missing.csv"), FileError);
+}
+
+TEST(IdRanges, FormatParseRoundTripAndRejectsMalformedText) {
+  EXPECT_EQ(FormatIdRanges({14, 3, 10, 11, 12, 13, 20, 3}), "3;10-14;20");
+  EXPECT_EQ(FormatIdRanges({}), "");
+  EXPECT_EQ(FormatIdRanges({7}), "7");
+  std::vector<int64_t> ids;
+  ASSERT_TRUE(ParseIdRanges("3;10-14;20", &ids));
+  EXPECT_EQ(ids, (std::vector<int64_t>{3, 10, 11, 12, 13, 14, 20}));
+  ASSERT_TRUE(ParseIdRanges("", &ids));
+  EXPECT_TRUE(ids.empty());
+  // Random sets survive the round trip exactly.
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 50; ++trial) {
+    std::vector<int64_t> set;
+    for (int64_t v = 0; v < 200; ++v)
+      if (rng() % 3 == 0) set.push_back(v);
+    ASSERT_TRUE(ParseIdRanges(FormatIdRanges(set), &ids));
+    EXPECT_EQ(ids, set);
+  }
+  for (const char* bad : {"a", "3;", "5-3", "3;3", "4;2", "1-2-3", "-1", ";", "1,2"})
+    EXPECT_FALSE(ParseIdRanges(bad, &ids)) << bad;
+}
+
+TEST(SearchAreaCoverage, CountsGtQueriesWithAGtMatchInTheirArea) {
+  // GT queries 50 (matches 1, 2), 51 (match 3), 52 (match 4), 60 (no frames.csv row).
+  const std::vector<LoopPair> gt = {{50, 1}, {50, 2}, {51, 3}, {52, 4}, {60, 5}};
+  std::map<int64_t, std::vector<int64_t>> areas;
+  areas[50] = {2, 7, 8};  // one of its two GT matches: covered
+  areas[51] = {1, 2};     // another query's match only: not covered
+  areas[52] = {};         // nothing searched
+  areas[53] = {4};        // not a GT query: ignored
+  const AreaCoverage c = SearchAreaCoverage(gt, areas);
+  EXPECT_EQ(c.queries, 3u);
+  EXPECT_EQ(c.covered, 1u);
+  ASSERT_TRUE(c.fraction);
+  EXPECT_DOUBLE_EQ(*c.fraction, 1.0 / 3.0);
+  EXPECT_DOUBLE_EQ(c.mean_candidates, 5.0 / 3.0);
+  EXPECT_FALSE(SearchAreaCoverage(gt, {}).fraction);
+}
+
+TEST(ReadSearchAreas, ReadsTheAreaColumnAndNamesFileAndLine) {
+  const auto dir = test::TempDir();
+  const auto path = dir / "frames.csv";
+  std::ofstream(path) << "frame,status,area\n0,no_candidates,\n7,detected,1-3;5\n";
+  const auto areas = ReadSearchAreas(path);
+  ASSERT_EQ(areas.size(), 2u);
+  EXPECT_TRUE(areas.at(0).empty());
+  EXPECT_EQ(areas.at(7), (std::vector<int64_t>{1, 2, 3, 5}));
+  const auto expect_error = [&](const std::string& content, int line, const std::string& what) {
+    std::ofstream(path) << content;
+    try {
+      ReadSearchAreas(path);
+      ADD_FAILURE() << "no error for: " << content;
+    } catch (const FileError& e) {
+      EXPECT_EQ(e.line(), line) << e.what();
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("frames.csv"), std::string::npos) << e.what();
+    }
+  };
+  expect_error("frame,status\n0,x\n", 1, "area");
+  expect_error("frame,area\n0,3-1\n", 2, "ranges");
+  expect_error("frame,area\nx,1\n", 2, "frame id");
+  expect_error("frame,area\n0,1,2\n", 2, "2 comma-separated fields");
+  EXPECT_THROW(ReadSearchAreas(dir / "missing.csv"), FileError);
 }
 
 }  // namespace

@@ -66,12 +66,13 @@ std::vector<cv::Mat> RevisitOfKeyframeOne() {
   return frames;
 }
 
-// A radius search area (the keyframes within `radius` of the query), 2 recent excluded, no
-// path-length filter.
+// A radius search area (the keyframes within `radius` of the query; no uncertainty area), 2
+// recent excluded, no path-length filter.
 LoopDetector::Options RadiusSearch(double radius) {
   LoopDetector::Options o;
   o.search.strategy = SearchStrategy::kRadius;
   o.search.radius = radius;
+  o.search.drift_rate = 0.0;
   o.search.exclude_recent = 2;
   o.min_path_ratio = 0;
   return o;
@@ -301,6 +302,7 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
     o.search.strategy = strategy;
     o.search.radius = 1.0;
     o.search.exclude_recent = 2;
+    o.search.drift_rate = 0.0;  // the radius alone: the drifted revisit is outside it
     o.min_path_ratio = 0;
     o.appearance_fallback = fallback;
     LoopDetector detector(o);

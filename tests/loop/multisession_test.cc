@@ -7,6 +7,7 @@
 // cross-session loops are correct by GT distance and none is false; relocalisation of pose-less
 // keyframes lands on the right keyframe with the pose close to GT.
 #include <cmath>
+#include <iostream>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -151,6 +152,56 @@ class MultiSession : public ::testing::Test {
 synthetic::World* MultiSession::world_ = nullptr;
 std::vector<Frame>* MultiSession::session1_ = nullptr;
 std::vector<Frame>* MultiSession::session2_ = nullptr;
+
+// A loop is a revisit (LoopDetector::Options::max_loop_distance_steps): one session flies the
+// circuit, then flies on around it again 7.2 m to the side (session 2's frames, raw = GT, metres,
+// depths given: metric loops; one pose segment, no jump). The mean raw step is ~8 m: with the gate
+// at 0.5 mean steps no metric loop farther than that is kept (those frames end
+// rejected_by_consistency or find a nearer match), while the default 10 steps keeps them.
+TEST_F(MultiSession, RevisitDistanceGateRejectsMetricLoopsFartherThanTheMeanSteps) {
+  std::vector<Frame> frames = *session1_;
+  // Session 2's frame k is at pose k + 20 (+ the offset): continue the circuit from pose 0.
+  for (size_t k = 0; k < session2_->size(); ++k)
+    frames.push_back((*session2_)[(k + 40) % session2_->size()]);
+  std::vector<double> mean_step(frames.size(), 0.0);  // path length / keyframes, at each one
+  double path = 0.0;
+  for (size_t i = 1; i < frames.size(); ++i) {
+    path += (frames[i].gt.translation - frames[i - 1].gt.translation).norm();
+    mean_step[i] = path / static_cast<double>(i);
+  }
+  const auto metric = [](const LoopResult& r) {
+    return r.detected() &&
+           (r.pose_kind == RelativePoseKind::kSim3 || r.pose_kind == RelativePoseKind::kSE3Metric);
+  };
+  const auto run = [&](double max_steps) {
+    LoopDetector::Options o = Options();
+    o.max_loop_distance_steps = max_steps;
+    LoopDetector d(o);
+    std::vector<LoopResult> results;
+    for (size_t i = 0; i < frames.size(); ++i)
+      results.push_back(d.Process(Input(frames[i], int64_t(i), Sim3d(), true, true)));
+    return results;
+  };
+  const std::vector<LoopResult> kept = run(10.0);
+  const std::vector<LoopResult> gated = run(0.5);
+  int far_kept = 0, gated_far = 0, rejected = 0;
+  for (size_t i = session1_->size(); i < frames.size(); ++i) {
+    const double limit = 0.5 * mean_step[i];
+    if (metric(kept[i]) && kept[i].match_from_query.translation.norm() > limit) ++far_kept;
+    if (metric(gated[i]) && gated[i].match_from_query.translation.norm() > limit) {
+      ++gated_far;
+      ADD_FAILURE() << "frame " << i << " kept a metric loop "
+                    << gated[i].match_from_query.translation.norm() << " m from its match (limit "
+                    << limit << " m)";
+    }
+    rejected += gated[i].status == LoopStatus::kRejectedByConsistency;
+  }
+  std::cerr << far_kept << " metric loops beyond 0.5 mean steps with the default gate; gated: "
+            << rejected << " frames rejected_by_consistency\n";
+  EXPECT_GE(far_kept, 10) << "the test needs metric loops beyond the gate";
+  EXPECT_EQ(gated_far, 0);
+  EXPECT_GE(rejected, far_kept / 3) << "far loops rejected (or replaced by a nearer match)";
+}
 
 TEST_F(MultiSession, StoredRecordRoundTripKeepsWhatMatchingNeeds) {
   LoopDetector d(Options());

@@ -170,6 +170,99 @@ TEST(SearchAreaDrift, MarginGrowsWithPathAndResetsOnLoop) {
   EXPECT_EQ(r.candidates, Range(19, 19));  // within 0.5 + 0.5
 }
 
+// Two laps of a 100 x 60 rectangle in the same direction (a street revisited as KITTI 00 does: the
+// motion ray runs parallel to the old path), 1 m steps, raw positions drifted by a heading bias
+// and a scale growth per step. Every lap-2 keyframe's true match is the lap-1 keyframe one lap
+// back. The paper's area (drift_rate 0) loses it as the drift grows; the uncertainty area
+// (drift_rate above the raw drift per path length) keeps it, with far fewer candidates than a
+// global search. Measured per drift level and per seed of the drift's direction.
+TEST(SearchAreaUncertainty, ContainsTheTruthOnDriftedLapsWhereThePaperAreaDoesNot) {
+  const int lap = 320;  // keyframes per lap (2 x (100 + 60) m)
+  std::vector<Eigen::Vector3d> gt;
+  for (int i = 0; i < 2 * lap; ++i) {
+    const int s = i % lap;
+    if (s < 100)
+      gt.emplace_back(s, 0, 0);
+    else if (s < 160)
+      gt.emplace_back(100, s - 100, 0);
+    else if (s < 260)
+      gt.emplace_back(100 - (s - 160), 60, 0);
+    else
+      gt.emplace_back(0, 60 - (s - 260), 0);
+  }
+  for (const double drift : {1.0, 4.0}) {
+    for (const int seed : {1, 2, 3}) {
+      // Raw odometry: each GT step rotated by the accumulated heading bias and scaled.
+      auto rng = test::SeededRng(static_cast<uint32_t>(seed));
+      std::normal_distribution<double> noise(0.0, 1.0);
+      const double bias = drift * 0.01 * (seed % 2 == 0 ? -1.0 : 1.0) * M_PI / 180.0;  // rad/step
+      std::vector<Eigen::Vector3d> raw = {gt[0]};
+      std::vector<double> raw_heading = {0.0};  // raw minus GT heading
+      double heading = 0.0, scale = 1.0;
+      for (size_t i = 1; i < gt.size(); ++i) {
+        heading += bias + drift * 0.002 * noise(rng);
+        raw_heading.push_back(heading);
+        scale *= 1.0 + drift * 0.0002;
+        const Eigen::Vector3d step = gt[i] - gt[i - 1];
+        raw.push_back(raw.back() +
+                      scale * (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * step));
+      }
+      SearchAreaOptions paper;
+      paper.plane_normal = Eigen::Vector3d::UnitZ();
+      paper.exclude_recent = 10;
+      SearchAreaOptions uncertain = paper;
+      uncertain.drift_rate = 0.1;
+      // c: the same, with the first revisit accepted as a loop (lap + 5 -> 5) and its rotation.
+      SearchArea a(paper), b(uncertain), c(uncertain);
+      int queries = 0, in_paper = 0, in_uncertain = 0, in_tied = 0;
+      double candidates = 0.0, tied_candidates = 0.0, paper_candidates = 0.0, eligible = 0.0;
+      for (int t = 0; t < 2 * lap; ++t) {
+        a.Add(t, raw[t]);
+        b.Add(t, raw[t]);
+        c.Add(t, raw[t]);
+        // The loop's rotation against the raw one (what the detector's verified pose gives).
+        if (t == lap + 5)
+          c.OnLoopAccepted(
+              t, 5,
+              Eigen::AngleAxisd(raw_heading[5] - raw_heading[t], Eigen::Vector3d::UnitZ())
+                  .toRotationMatrix());
+        if (t <= lap + 5) continue;
+        const int64_t truth = t - lap;
+        const auto contains = [&](const SearchAreaResult& r) {
+          return std::binary_search(r.candidates.begin(), r.candidates.end(), truth);
+        };
+        const SearchAreaResult rb = b.Query(t);
+        ++queries;
+        const SearchAreaResult ra = a.Query(t);
+        in_paper += contains(ra);
+        paper_candidates += static_cast<double>(ra.candidates.size());
+        in_uncertain += contains(rb);
+        candidates += static_cast<double>(rb.candidates.size());
+        const SearchAreaResult rc = c.Query(t);
+        in_tied += contains(rc);
+        tied_candidates += static_cast<double>(rc.candidates.size());
+        eligible += t - paper.exclude_recent;
+      }
+      const double f_paper = static_cast<double>(in_paper) / queries;
+      const double f_uncertain = static_cast<double>(in_uncertain) / queries;
+      std::cerr << "drift x" << drift << " seed " << seed << ": truth in the paper area " << f_paper
+                << " (" << paper_candidates / queries << " candidates), in the uncertainty area "
+                << f_uncertain << ", candidates " << candidates / queries << " ("
+                << candidates / eligible << " of global); after a loop "
+                << static_cast<double>(in_tied) / queries << " with " << tied_candidates / queries
+                << " candidates\n";
+      EXPECT_GE(f_uncertain, 0.95) << "drift x" << drift << " seed " << seed;
+      EXPECT_GE(f_uncertain, f_paper);
+      EXPECT_LT(candidates / eligible, 0.5);  // an area, not the whole past
+      if (drift >= 4.0) EXPECT_LT(f_paper, 0.5) << "the old area should lose the truth here";
+      // Tied by a loop, the odometry since it is shorter: the area stays on the truth and
+      // shrinks (measured: by 10-25 %; the keyframes far from the loop keep their long paths).
+      EXPECT_GE(static_cast<double>(in_tied) / queries, 0.95);
+      EXPECT_LT(tied_candidates, 0.95 * candidates);
+    }
+  }
+}
+
 // The online path length equals the trajectory's (Trajectory::CumulativeDistances, the one
 // definition) at every stored keyframe; unknown ids are refused.
 TEST(SearchAreaPath, PathLengthEqualsTheTrajectorysCumulativeDistance) {
@@ -266,6 +359,7 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
   std::uniform_real_distribution<double> uni(0.0, 1.0);
   int compared = 0, paper_hits = 0, paper_fallbacks = 0, backward_hits = 0, no_end = 0,
       nonempty = 0;
+  size_t uncertainty_added = 0;
   for (int trial = 0; trial < 60; ++trial) {
     const Shape shape = static_cast<Shape>(trial % 3);
     Eigen::Matrix3d rot;
@@ -278,20 +372,27 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
     o.radius = 2.0 + 6.0 * uni(rng);
     o.radius_in_plane = uni(rng) < 0.5;
     o.drift_tolerance = (trial / 9) % 2 == 0 ? 0.0 : 0.01 + 0.03 * uni(rng);
+    o.drift_rate = (trial / 18) % 2 == 0 ? 0.0 : 0.005 + 0.05 * uni(rng);
+    o.drift_base_steps = 5.0 * uni(rng);
+    o.drift_loops = static_cast<int>(4 * uni(rng));
     o.fallback_count = 1 + static_cast<int>(40 * uni(rng));
     if (uni(rng) < 0.5) o.plane_normal = rot.col(2);
     o.cell_size = uni(rng) < 0.3 ? 0.3 + 3.0 * uni(rng) : 0.0;
     SearchArea area(o);
     int loop_index = 0;
+    std::vector<std::pair<int, int>> loops;
     for (int t = 0; t < n; ++t) {
       const int64_t id = 7 * t + 3;
       area.Add(id, pts[t]);
       if (t > 50 && uni(rng) < 0.02) {
-        area.OnLoopAccepted(id, 3);
+        const int match = static_cast<int>((t - 40) * uni(rng));
+        area.OnLoopAccepted(id, 7 * match + 3);
         loop_index = t;
+        loops.emplace_back(t, match);
       }
       const SearchAreaResult got = area.Query(id);
-      const auto want = BruteForceSearchArea(pts, area.plane(), o, t, loop_index);
+      const auto want = BruteForceSearchArea(pts, area.plane(), o, t, loop_index, loops);
+      uncertainty_added += got.uncertainty_added;
       std::vector<int64_t> want_ids;
       for (int k : want.candidates) want_ids.push_back(7 * k + 3);
       ASSERT_EQ(got.candidates, want_ids)
@@ -318,6 +419,7 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
   EXPECT_GT(paper_fallbacks, 50);
   EXPECT_GT(backward_hits, 20);
   EXPECT_GT(no_end, 20);
+  EXPECT_GT(uncertainty_added, 1000u);  // the uncertainty area adds to the others
   std::cerr << compared << " queries: " << paper_hits << " segment hits, " << backward_hits
             << " backward-ray hits, " << paper_fallbacks << " fallbacks, " << no_end
             << " without p'\n";

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -51,10 +52,13 @@ inline Eigen::Vector2d Rot(const Eigen::Vector2d& d, double a) {
 }  // namespace oracle_detail
 
 // positions[0..t] are the keyframes added so far (at least up to t); `plane` the frame the
-// SearchArea used; `loop_index` the index of the last accepted loop query (0 if none).
+// SearchArea used; `loop_index` the index of the last accepted loop query (0 if none); `loops`
+// every accepted loop (query, match index) in order (the uncertainty area reads the last
+// o.drift_loops).
 inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& positions,
                                          const PlaneFrame& plane, const SearchAreaOptions& o, int t,
-                                         int loop_index) {
+                                         int loop_index,
+                                         const std::vector<std::pair<int, int>>& loops = {}) {
   using namespace oracle_detail;
   const double inf = std::numeric_limits<double>::infinity();
   OracleAnswer ans;
@@ -69,6 +73,30 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
   const int E = std::max(0, t - o.exclude_recent);
   if (E <= 0) return ans;
   auto done = [&](std::vector<int> c) {
+    // The uncertainty area (drift_rate): |x_k - centre| <= base + rate * odometry on the path
+    // with the least odometry, directly or through one of the last drift_loops loops (the
+    // earliest such path wins a tie).
+    if (o.drift_rate > 0.0 && t >= 1) {
+      const double base = o.drift_base_steps * L[t] / t;
+      std::vector<std::pair<int, int>> paths = {{t, t}};
+      const size_t first =
+          loops.size() - std::min(loops.size(), static_cast<size_t>(o.drift_loops));
+      paths.insert(paths.end(), loops.begin() + static_cast<std::ptrdiff_t>(first), loops.end());
+      for (int k = 0; k < E; ++k) {
+        double best = std::numeric_limits<double>::infinity();
+        Eigen::Vector3d centre;
+        for (const auto& [lq, lm] : paths) {
+          const double odometry = std::abs(L[t] - L[lq]) + std::abs(L[lm] - L[k]);
+          if (odometry < best) {
+            best = odometry;
+            centre = positions[lm] + (positions[t] - positions[lq]);
+          }
+        }
+        if ((positions[k] - centre).norm() <= base + o.drift_rate * best) c.push_back(k);
+      }
+      std::sort(c.begin(), c.end());
+      c.erase(std::unique(c.begin(), c.end()), c.end());
+    }
     ans.candidates = std::move(c);
     ans.status = ans.candidates.empty() ? SearchAreaStatus::kEmpty : SearchAreaStatus::kOk;
     return ans;

@@ -29,7 +29,9 @@
 // accepted correct detection has its query within event_margin frames of the run.
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "sparseloop/core/loop_pair.h"
@@ -138,6 +140,30 @@ struct GtDistanceScore {
   size_t events = 0;           // GT events (runs of GT queries)
   size_t events_detected = 0;  // with an accepted correct detection
 };
+
+// Search-area coverage (issue #17): for each GT query frame that has a row in `areas` (frame ->
+// the stored keyframe ids its search area held, after the detector's filters), whether one of its
+// GT matches (a GT pair (query, m)) is among them: the loop the images could verify was at least
+// compared. fraction = covered / queries (nullopt without queries); mean_candidates over them.
+struct AreaCoverage {
+  size_t queries = 0;
+  size_t covered = 0;
+  double mean_candidates = 0.0;
+  std::optional<double> fraction;
+};
+AreaCoverage SearchAreaCoverage(const std::vector<LoopPair>& gt_loops,
+                                const std::map<int64_t, std::vector<int64_t>>& areas);
+
+// Keyframe id sets as text, the `area` column of frames.csv: ';'-separated ids and inclusive
+// ranges "a-b" (ids ascending), e.g. "3;10-14;20". Empty set: "". FormatIdRanges sorts and drops
+// duplicates; ParseIdRanges returns false on anything else than that syntax (ranges with b >= a).
+std::string FormatIdRanges(std::vector<int64_t> ids);
+bool ParseIdRanges(const std::string& text, std::vector<int64_t>* ids);
+
+// Reads the frame and area columns of `run` / `detect`'s frames.csv (docs/FORMATS.md): frame ->
+// ids. Throws FileError(path, line, expected, got) for a missing file or column, a wrong field
+// count or an unparsable field.
+std::map<int64_t, std::vector<int64_t>> ReadSearchAreas(const std::filesystem::path& path);
 
 // `gt_loops` define the GT queries (DeriveGtLoops, or a pairs file); `gt` gives the positions and
 // the path between frames (file order).

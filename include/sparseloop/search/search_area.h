@@ -50,6 +50,22 @@ struct SearchAreaOptions {
   // travelled since the last accepted loop: margin = drift_tolerance * distance (world units).
   // 0 disables it. E.g. 0.02 = 2 % of the path length.
   double drift_tolerance = 0.0;
+  // Uncertainty area (issue #17; strategies kPaper and kRadius), added to the area above. The raw
+  // positions of one place seen twice differ by the odometry drift accumulated along the path
+  // between the two visits, so every eligible keyframe k with
+  //   |x_k - x_t| <= r_k,   r_k = drift_base_steps x s + drift_rate x L(k, t)
+  // is a candidate too (3D, raw units; s = the mean raw step so far, path length / steps, so the
+  // base is scale-free; L(k, t) = the raw path length from k to the query t). An accepted loop
+  // (OnLoopAccepted, query q, match m, the loop's rotation correction C) ties two places: the
+  // query's position as the loop predicts it in the match pass's raw frame is
+  // x_m + C (x_t - x_q), with odometry |L(t) - L(q)| + |L(m) - L(k)| to keyframe k. Each k is
+  // tested on the path with the least odometry (directly, or through one of the last drift_loops
+  // loops): near a place already closed the area is tight again, however far the path since.
+  // drift_rate: fraction of path length, >= 0 (0 disables); drift_base_steps: mean steps, >= 0;
+  // drift_loops: loops, >= 0.
+  double drift_rate = 0.0;
+  double drift_base_steps = 10.0;
+  int drift_loops = 8;
   // Normal of the motion plane (any length > 0). Unset: fitted to the trajectory by PCA
   // (smallest principal axis). KITTI camera poses: (0, 1, 0) (the ground plane is x-z).
   std::optional<Eigen::Vector3d> plane_normal;
@@ -127,7 +143,9 @@ struct SearchAreaResult {
   std::optional<int64_t> range_last;
   double distance_since_loop = 0.0;  // path length since the last accepted loop (world units)
   double drift_margin = 0.0;         // drift_tolerance * distance_since_loop (world units)
-  size_t cells_visited = 0;          // grid cells inspected (cost diagnostic)
+  // Candidates the uncertainty area (drift_rate) added beyond the paper's / radius area, count.
+  size_t uncertainty_added = 0;
+  size_t cells_visited = 0;  // grid cells inspected (cost diagnostic)
 
   // One line, e.g. "paper ok segment-hit 12 candidates start=40 end=57 margin=0.00".
   std::string BriefReport() const;
@@ -146,8 +164,14 @@ class SearchArea {
   // The search area for a stored keyframe (normally the one just added): only keyframes added
   // before it are considered. Unknown id: std::invalid_argument.
   SearchAreaResult Query(int64_t keyframe_id) const;
-  // Records an accepted loop: the drift distance restarts at `query_id`. Both ids must be stored.
-  void OnLoopAccepted(int64_t query_id, int64_t match_id);
+  // Records an accepted loop: the drift distance restarts at `query_id`, and the uncertainty
+  // area (drift_rate) searches around the position it predicts. Both ids must be stored.
+  // `raw_correction` (the loop's verified rotation against the raw one, and when known the scale
+  // between the two passes: the linear map that takes displacements of the query pass's raw
+  // world into the match pass's, s R_wm R_mq R_wq^T) turns the path since the loop into the
+  // match pass's frame; identity when unknown.
+  void OnLoopAccepted(int64_t query_id, int64_t match_id,
+                      const Eigen::Matrix3d& raw_correction = Eigen::Matrix3d::Identity());
   size_t size() const;
   // Path length along the stored keyframes from the first one to `keyframe_id` (sum of the
   // distances between consecutive stored positions; world units). The one online path length:
