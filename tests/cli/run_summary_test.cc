@@ -286,8 +286,7 @@ TEST(CliRunSummary, EvalMeasuresSearchAreaCoverageFromFramesCsv) {
   const fs::path& out = RunOnRenderedSequence();
   const auto dir = TempDir();
   const CliResult r = RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string(), "--frames",
-                              (out / "frames.csv").string(), "--json",
-                              (dir / "m.json").string()});
+                              (out / "frames.csv").string(), "--json", (dir / "m.json").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("Search area"), std::string::npos) << r.out;
   const auto area = ReadJson(dir / "m.json")["search_area"];
@@ -304,8 +303,8 @@ TEST(CliRunSummary, EvalMeasuresSearchAreaCoverageFromFramesCsv) {
   // A frames.csv without the area column (an older run): file and line.
   const fs::path old = dir / "old_frames.csv";
   std::ofstream(old) << "frame,status\n0,no_candidates\n";
-  const CliResult bad = RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string(),
-                                "--frames", old.string()});
+  const CliResult bad =
+      RunCli({"eval", "--gt-loops", (out / "gt_loops.txt").string(), "--frames", old.string()});
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("old_frames.csv:1"), std::string::npos) << bad.err;
   EXPECT_NE(bad.err.find("area"), std::string::npos) << bad.err;
