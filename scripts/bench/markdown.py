@@ -100,7 +100,7 @@ def default_runs(res):
     out = []
     for seq, variants in res["metrics"].items():
         for v, m in variants.items():
-            if v in ("kdefault", "default", "family_new") or v.endswith("_paper"):
+            if v in ("kdefault", "default", "family_new") or v.endswith("_default"):
                 out.append((f"{seq}/{v}", m))
     for v, m in res["baselines"].items():
         if v == "sparseloop_default":
@@ -433,11 +433,13 @@ def robustness_section(res):
     for name, (kind, v) in sorted(res["robust"].items(), key=lambda x: (x[1][0], x[1][1])):
         m = res["metrics"][name]["default"]
         rows.append([kind, v, m["recall_100p_accepted"], m["false_detected"], m["false_accepted"]])
+    labels = {"default": "drift (default area)", "paper": "drift (paper area only)",
+              "paper_drift": "drift (paper + 5 % tolerance)"}
     for d in res["drift_scales"]:
-        for variant in ("paper", "paper_drift"):
+        for variant in ("paper", "paper_drift", "default"):
             m = res["metrics"]["street07"].get(f"drift{d:g}_{variant}")
             if m:
-                rows.append([f"drift ({variant})", d, m["recall_100p_accepted"],
+                rows.append([labels[variant], d, m["recall_100p_accepted"],
                              m["false_detected"], m["false_accepted"]])
     return prose("robustness", table=table(["factor", "value", "recall@100%P", "false detected",
                                             "false accepted"], rows))
