@@ -229,6 +229,21 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
   return status;
 }
 
+namespace {
+// How many of the ranked candidates to verify: max_verify, then the close scores.
+int VerifyCount(const LoopDetector::Options& o,
+                const std::vector<loop_internal::RankedCandidate>& ranked) {
+  const int available = static_cast<int>(ranked.size());
+  int n = std::min(o.max_verify, available);
+  if (o.verify_close_fraction <= 0 || n == 0) return n;
+  // The next candidates while their match count is near the max_verify-th's.
+  const double floor = o.verify_close_fraction * static_cast<double>(ranked[n - 1].matches.size());
+  const int cap = std::min(std::max(o.max_verify_close, n), available);
+  while (n < cap && static_cast<double>(ranked[n].matches.size()) >= floor) ++n;
+  return n;
+}
+}  // namespace
+
 void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
                                    LoopResult* result) {
   result->candidates = static_cast<int>(candidates.size());
@@ -265,7 +280,7 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   const size_t query_index = index_of_.at(query.id);
   LoopStatus status = LoopStatus::kTooFewInliers;
   bool have_best = false;
-  const int n_verify = std::min<int>(options_.max_verify, static_cast<int>(ranked.size()));
+  const int n_verify = VerifyCount(options_, ranked);
   std::optional<size_t> support;  // match index of this query's first gate-passing pair
   // Keep the most informative outcome: detected > rejected > too few inliers (best inliers).
   auto rank = [](LoopStatus s) {

@@ -90,6 +90,9 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(query_max_features >= 5, "query_max_features must be >= 5, got {}",
                query_max_features);
   SL_CHECK_MSG(max_verify >= 1, "max_verify must be >= 1, got {}", max_verify);
+  SL_CHECK_MSG(verify_close_fraction >= 0 && verify_close_fraction <= 1 && max_verify_close >= 1,
+               "verify_close_fraction must be in [0, 1] and max_verify_close >= 1, got {} and {}",
+               verify_close_fraction, max_verify_close);
   SL_CHECK_MSG(std::isfinite(max_loop_distance_steps) && max_loop_distance_steps >= 0,
                "max_loop_distance_steps must be >= 0, got {}", max_loop_distance_steps);
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,

@@ -291,6 +291,11 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "lowest small-K floor (>= 5)");
   k.Add(d + "max_verify", SL_FIELD(detector.max_verify), "candidates",
         "best-ranked candidates verified geometrically (>= 1)");
+  k.Add(d + "verify_close_fraction", SL_FIELD(detector.verify_close_fraction), "fraction",
+        "also verify the next candidates with at least this fraction of the max_verify-th's "
+        "matches (0: off)");
+  k.Add(d + "max_verify_close", SL_FIELD(detector.max_verify_close), "candidates",
+        "close scores: candidates verified in all, at most (>= 1)");
   k.Add(d + "min_inlier_fraction_of_k", SL_FIELD(detector.min_inlier_fraction_of_k), "fraction",
         "inlier floor grows as ceil(fraction x K) [0, 1]");
   k.Add(d + "min_path_ratio", SL_FIELD(detector.min_path_ratio), "ratio",

@@ -1,4 +1,5 @@
 // Detector behaviour without real data: options, statuses, every-N rule, determinism.
+#include <algorithm>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -504,6 +505,68 @@ TEST(LoopDetector, PoseJumpRules) {
   LoopDetector::Options bad;
   bad.pose_jump_max_scale = 0.5;
   EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+// The image cut into 8 x 8 tiles put back in another order, none in its place: most descriptors
+// match the original (the tiles' insides), the geometry does not (each tile moved on its own).
+cv::Mat ShuffledTiles(const cv::Mat& image, uint64_t seed) {
+  constexpr int kSide = 8, kTiles = kSide * kSide;
+  const int tw = image.cols / kSide, th = image.rows / kSide;
+  std::vector<int> order(kTiles);
+  cv::RNG rng(seed);
+  bool deranged = false;
+  while (!deranged) {
+    for (int i = 0; i < kTiles; ++i) order[i] = i;
+    for (int i = kTiles - 1; i > 0; --i) std::swap(order[i], order[rng.uniform(0, i + 1)]);
+    deranged = true;
+    for (int i = 0; i < kTiles; ++i) deranged = deranged && order[i] != i;
+  }
+  cv::Mat out = image.clone();
+  for (int i = 0; i < kTiles; ++i) {
+    const cv::Rect from((order[i] % kSide) * tw, (order[i] / kSide) * th, tw, th);
+    image(from).copyTo(out(cv::Rect((i % kSide) * tw, (i / kSide) * th, tw, th)));
+  }
+  return out;
+}
+
+// Close scores (Options::verify_close_fraction): six stored keyframes are the query's place with
+// its tiles shuffled, so all six reach similar descriptor match counts and none verifies. The
+// default verifies the best three; with close scores every candidate within the fraction of the
+// third's count is verified too, up to max_verify_close; the counts come from the ranking.
+TEST(LoopDetector, CloseScoresVerifyMoreThanMaxVerify) {
+  const cv::Mat place = Textured(7);
+  std::vector<cv::Mat> frames;
+  for (uint64_t seed = 0; seed < 6; ++seed) frames.push_back(ShuffledTiles(place, seed + 1));
+  frames.push_back(Textured(100));  // 6, 7: fillers (exclude_recent = 2)
+  frames.push_back(Textured(101));
+  frames.push_back(Shifted(place));  // 8: the query
+  const auto run = [&](double fraction, int cap) {
+    LoopDetector::Options o = RadiusSearch(100.0);
+    o.verify_close_fraction = fraction;
+    o.max_verify_close = cap;
+    LoopDetector detector(o);
+    LoopResult last;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
+      in.world_from_cam =
+          Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(static_cast<double>(i), 0, 0));
+      last = detector.Process(in);
+    }
+    return last;
+  };
+  const LoopResult plain = run(0.0, 8);
+  ASSERT_FALSE(plain.detected()) << ToString(plain.status);
+  EXPECT_EQ(plain.verified_in_area.size(), 3u);  // max_verify
+  const LoopResult close = run(0.5, 8);
+  EXPECT_FALSE(close.detected());
+  EXPECT_GT(close.verified_in_area.size(), 3u);
+  EXPECT_LE(close.verified_in_area.size(), 6u);  // the six shuffled ones at most
+  // The first three are the same candidates in the same order; the cap holds.
+  EXPECT_TRUE(std::equal(plain.verified_in_area.begin(), plain.verified_in_area.end(),
+                         close.verified_in_area.begin()));
+  EXPECT_EQ(run(0.5, 4).verified_in_area.size(), 4u);
+  // A fraction of 1 adds only candidates with as many matches as the third (none here or ties).
+  EXPECT_LE(run(1.0, 8).verified_in_area.size(), close.verified_in_area.size());
 }
 
 TEST(LoopDetector, CheckEveryNSkipsButStores) {
