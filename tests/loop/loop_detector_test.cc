@@ -88,6 +88,21 @@ KeyframeInput Input(int64_t id, const cv::Mat& image) {
   return in;
 }
 
+// A fresh detector processes `frames` as keyframes 0, 1, ... posed along x, `spacing` apart (raw
+// units); the last keyframe's result.
+LoopResult LastResultAlongX(const LoopDetector::Options& o, const std::vector<cv::Mat>& frames,
+                            double spacing) {
+  LoopDetector detector(o);
+  LoopResult last;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
+    in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                              Eigen::Vector3d(spacing * static_cast<double>(i), 0, 0));
+    last = detector.Process(in);
+  }
+  return last;
+}
+
 TEST(LoopDetector, OptionsCheck) {
   EXPECT_NO_THROW(LoopDetector::Options{}.Check());
   LoopDetector::Options o;
@@ -354,15 +369,7 @@ TEST(LoopDetector, AppearanceFallbackPreRankingKeepsTheLoopOfTheFullFallback) {
     LoopDetector::Options o = RadiusSearch(1.0);
     o.appearance_fallback = true;
     o.fallback_candidates = candidates;
-    LoopDetector detector(o);
-    LoopResult last;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
-      in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(),
-                                Eigen::Vector3d(100.0 * static_cast<double>(i), 0, 0));
-      last = detector.Process(in);
-    }
-    return last;
+    return LastResultAlongX(o, frames, 100.0);
   };
   const LoopResult full = run(0);
   const LoopResult ranked = run(2);
@@ -544,15 +551,7 @@ TEST(LoopDetector, CloseScoresVerifyMoreThanMaxVerify) {
     LoopDetector::Options o = RadiusSearch(100.0);
     o.verify_close_fraction = fraction;
     o.max_verify_close = cap;
-    LoopDetector detector(o);
-    LoopResult last;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
-      in.world_from_cam =
-          Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(static_cast<double>(i), 0, 0));
-      last = detector.Process(in);
-    }
-    return last;
+    return LastResultAlongX(o, frames, 1.0);
   };
   const LoopResult plain = run(0.0, 8);
   ASSERT_FALSE(plain.detected()) << ToString(plain.status);
