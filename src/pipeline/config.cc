@@ -186,6 +186,8 @@ void AddSearchKeys(KeyList& k) {
         "uncertainty area: radius at zero path, in mean raw steps (>= 0)");
   k.Add(s + "drift_loops", SL_FIELD(detector.search.drift_loops), "loops",
         "uncertainty area: the last accepted loops it also searches through (>= 0)");
+  k.Add(s + "drift_max_candidates", SL_FIELD(detector.search.drift_max_candidates), "keyframes",
+        "uncertainty area: at most this many, nearest relative to their radius (>= 1)");
   k.Add(PlaneNormalKey());
   k.Add(s + "fallback_count", SL_FIELD(detector.search.fallback_count), "keyframes",
         "paper: keyframes searched when the motion ray hits nothing (>= 1)");

@@ -228,6 +228,8 @@ void SearchAreaOptions::Check() const {
   SL_CHECK_MSG(drift_base_steps >= 0.0 && std::isfinite(drift_base_steps),
                "drift_base_steps must be finite and >= 0, got {}", drift_base_steps);
   SL_CHECK_MSG(drift_loops >= 0, "drift_loops must be >= 0, got {}", drift_loops);
+  SL_CHECK_MSG(drift_max_candidates >= 1, "drift_max_candidates must be >= 1, got {}",
+               drift_max_candidates);
   if (plane_normal) {
     SL_CHECK_MSG(plane_normal->allFinite() && plane_normal->norm() > 1e-12,
                  "plane_normal must be finite and non-zero");
@@ -328,7 +330,7 @@ size_t SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vect
   }
   std::sort(near.begin(), near.end());
   near.erase(std::unique(near.begin(), near.end()), near.end());
-  const size_t before = out->size();
+  std::vector<std::pair<double, int32_t>> inside;  // (distance / radius, k)
   for (const int32_t k : near) {
     const Path* best = nullptr;
     double odometry = kInf;
@@ -336,9 +338,19 @@ size_t SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vect
       const double o = p.since + std::abs(path_length[p.m] - path_length[k]);
       if (o < odometry) odometry = o, best = &p;
     }
-    if ((positions[k] - best->centre).norm() <= base + rate * odometry) out->push_back(k);
+    const double d = (positions[k] - best->centre).norm();
+    const double r = base + rate * odometry;
+    if (d <= r) inside.emplace_back(r > 0.0 ? d / r : 0.0, k);
   }
-  return out->size() - before;
+  // Bounded: the drift_max_candidates nearest relative to their radius (then the lower index).
+  const size_t cap = static_cast<size_t>(options.drift_max_candidates);
+  if (inside.size() > cap) {
+    std::nth_element(inside.begin(), inside.begin() + static_cast<std::ptrdiff_t>(cap),
+                     inside.end());
+    inside.resize(cap);
+  }
+  for (const auto& [ratio, k] : inside) out->push_back(k);
+  return inside.size();
 }
 
 Eigen::Vector2d SearchArea::Impl::MotionDirection(int32_t t) const {

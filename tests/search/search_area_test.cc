@@ -375,6 +375,7 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
     o.drift_rate = (trial / 18) % 2 == 0 ? 0.0 : 0.005 + 0.05 * uni(rng);
     o.drift_base_steps = 5.0 * uni(rng);
     o.drift_loops = static_cast<int>(4 * uni(rng));
+    o.drift_max_candidates = uni(rng) < 0.5 ? 1000 : 1 + static_cast<int>(30 * uni(rng));
     o.fallback_count = 1 + static_cast<int>(40 * uni(rng));
     if (uni(rng) < 0.5) o.plane_normal = rot.col(2);
     o.cell_size = uni(rng) < 0.3 ? 0.3 + 3.0 * uni(rng) : 0.0;

@@ -82,6 +82,7 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
       const size_t first =
           loops.size() - std::min(loops.size(), static_cast<size_t>(o.drift_loops));
       paths.insert(paths.end(), loops.begin() + static_cast<std::ptrdiff_t>(first), loops.end());
+      std::vector<std::pair<double, int>> inside;  // (distance / radius, k)
       for (int k = 0; k < E; ++k) {
         double best = std::numeric_limits<double>::infinity();
         Eigen::Vector3d centre;
@@ -92,8 +93,15 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
             centre = positions[lm] + (positions[t] - positions[lq]);
           }
         }
-        if ((positions[k] - centre).norm() <= base + o.drift_rate * best) c.push_back(k);
+        const double d = (positions[k] - centre).norm();
+        const double r = base + o.drift_rate * best;
+        if (d <= r) inside.emplace_back(r > 0.0 ? d / r : 0.0, k);
       }
+      // The drift_max_candidates nearest relative to their radius, then the lower index.
+      std::sort(inside.begin(), inside.end());
+      if (inside.size() > static_cast<size_t>(o.drift_max_candidates))
+        inside.resize(static_cast<size_t>(o.drift_max_candidates));
+      for (const auto& [ratio, k] : inside) c.push_back(k);
       std::sort(c.begin(), c.end());
       c.erase(std::unique(c.begin(), c.end()), c.end());
     }

@@ -61,11 +61,17 @@ struct SearchAreaOptions {
   // x_m + C (x_t - x_q), with odometry |L(t) - L(q)| + |L(m) - L(k)| to keyframe k. Each k is
   // tested on the path with the least odometry (directly, or through one of the last drift_loops
   // loops): near a place already closed the area is tight again, however far the path since.
+  // At most drift_max_candidates keyframes are added, those nearest relative to their radius
+  // (|x_k - c| / r_k, then the lower index): where the camera has passed a place many times the
+  // area would otherwise grow with the number of passes (a 6,000-keyframe soak flight at K = 300:
+  // 5 -> 100 ms per keyframe without the bound). 200 keeps every figure of docs/SEARCH_AREA.md
+  // (100 lost street05 x4: in area 1.00 -> 0.92, recall 0.83 -> 0.77).
   // drift_rate: fraction of path length, >= 0 (0 disables); drift_base_steps: mean steps, >= 0;
-  // drift_loops: loops, >= 0.
+  // drift_loops: loops, >= 0; drift_max_candidates: keyframes, >= 1.
   double drift_rate = 0.0;
   double drift_base_steps = 10.0;
   int drift_loops = 8;
+  int drift_max_candidates = 200;
   // Normal of the motion plane (any length > 0). Unset: fitted to the trajectory by PCA
   // (smallest principal axis). KITTI camera poses: (0, 1, 0) (the ground plane is x-z).
   std::optional<Eigen::Vector3d> plane_normal;
