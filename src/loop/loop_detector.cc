@@ -346,7 +346,6 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   result->timings.search_ms += fallback_search_ms;
   result->appearance_candidates = fallback.candidates;
   result->verified_by_appearance = std::move(fallback.verified_in_area);
-  fallback.area.clear();
   MergeSubSearch(std::move(fallback), CandidateSource::kAppearance, result);
 }
 

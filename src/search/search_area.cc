@@ -298,14 +298,14 @@ struct SearchArea::Impl {
                              int32_t eligible, SearchAreaResult* result) const;
   // Drift widening of an index range: keyframes within `margin` path length of its ends.
   void WidenByPath(double margin, int32_t eligible, int32_t* lo, int32_t* hi) const;
-  // The uncertainty area (options.drift_rate) of query t: appends to *out, returns the count.
-  size_t CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
-                          size_t* cells) const;
+  // The uncertainty area (options.drift_rate) of query t: appends its distinct keyframes to *out.
+  void CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
+                        size_t* cells) const;
 };
 
-size_t SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
-                                          size_t* cells) const {
-  if (options.drift_rate <= 0.0 || t < 1 || eligible <= 0) return 0;
+void SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
+                                        size_t* cells) const {
+  if (options.drift_rate <= 0.0 || t < 1 || eligible <= 0) return;
   const double base = options.drift_base_steps * path_length[t] / t;
   const double rate = options.drift_rate;
   // The paths that tie a keyframe k to the query: the odometry between them (q = m = t), or
@@ -350,7 +350,6 @@ size_t SearchArea::Impl::CollectUncertain(int32_t t, int32_t eligible, std::vect
     inside.resize(cap);
   }
   for (const auto& [ratio, k] : inside) out->push_back(k);
-  return inside.size();
 }
 
 Eigen::Vector2d SearchArea::Impl::MotionDirection(int32_t t) const {
@@ -693,18 +692,14 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   const int32_t eligible = std::max<int32_t>(0, t - o.exclude_recent);  // indices < eligible
   std::vector<int32_t> selected;
   auto finish = [&]() {
-    // The uncertainty area: what it adds beyond the paper's / radius area is counted.
-    std::vector<int32_t> uncertain;
-    m.CollectUncertain(t, eligible, &uncertain, &result.cells_visited);
     std::sort(selected.begin(), selected.end());
     selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
-    std::sort(uncertain.begin(), uncertain.end());
-    uncertain.erase(std::unique(uncertain.begin(), uncertain.end()), uncertain.end());
-    for (const int32_t k : uncertain)
-      if (!std::binary_search(selected.begin(), selected.end(), k)) ++result.uncertainty_added;
-    selected.insert(selected.end(), uncertain.begin(), uncertain.end());
+    const size_t own = selected.size();
+    // The uncertainty area (distinct keyframes); what it adds beyond this area is counted.
+    m.CollectUncertain(t, eligible, &selected, &result.cells_visited);
     std::sort(selected.begin(), selected.end());
     selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
+    result.uncertainty_added = selected.size() - own;
     result.candidates.reserve(selected.size());
     for (int32_t k : selected) result.candidates.push_back(m.ids[k]);
     result.status = selected.empty() ? SearchAreaStatus::kEmpty : SearchAreaStatus::kOk;

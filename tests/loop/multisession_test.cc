@@ -196,8 +196,9 @@ TEST_F(MultiSession, RevisitDistanceGateRejectsMetricLoopsFartherThanTheMeanStep
     }
     rejected += gated[i].status == LoopStatus::kRejectedByConsistency;
   }
-  std::cerr << far_kept << " metric loops beyond 0.5 mean steps with the default gate; gated: "
-            << rejected << " frames rejected_by_consistency\n";
+  std::cerr << far_kept
+            << " metric loops beyond 0.5 mean steps with the default gate; gated: " << rejected
+            << " frames rejected_by_consistency\n";
   EXPECT_GE(far_kept, 10) << "the test needs metric loops beyond the gate";
   EXPECT_EQ(gated_far, 0);
   EXPECT_GE(rejected, far_kept / 3) << "far loops rejected (or replaced by a nearer match)";
