@@ -50,8 +50,10 @@ OLD_LOOP_DEFAULTS = {
 
 
 # The search area before session 19 (issue #17): the paper's wedge alone on the raw poses, no
-# uncertainty area, and no revisit-distance gate (which only the wide area needs).
-OLD_AREA_DEFAULTS = {"detector": {"search": {"drift_rate": 0.0}, "max_loop_distance_steps": 0.0}}
+# uncertainty area, no appearance fallback (default since session 21) and no revisit-distance gate
+# (which only the wide area needs).
+OLD_AREA_DEFAULTS = {"detector": {"search": {"drift_rate": 0.0}, "max_loop_distance_steps": 0.0,
+                                  "appearance_fallback": False}}
 
 
 def drift_family(quick):
@@ -72,9 +74,10 @@ def ablation_variants():
     s = lambda **kw: {"search": kw}  # noqa: E731
     return {
         "default": ("", {}, {}),
-        "search_paper_only": ("search area", {**s(drift_rate=0.0), "max_loop_distance_steps": 0.0},
-                              {}),
-        "search_paper_drift": ("search area", s(drift_tolerance=0.05, drift_rate=0.0), {}),
+        "search_paper_only": ("search area", OLD_AREA_DEFAULTS["detector"], {}),
+        "search_no_fallback": ("search area", {"appearance_fallback": False}, {}),
+        "search_paper_drift": ("search area", {**s(drift_tolerance=0.05, drift_rate=0.0),
+                                               "appearance_fallback": False}, {}),
         "search_radius": ("search area", s(strategy="radius", radius=20.0), {}),
         "search_global": ("search area", s(strategy="global"), {}),
         "rank_popcount": ("feature ranking", f(ranking="popcount"), {}),
@@ -88,7 +91,9 @@ def ablation_variants():
 # Issue #19: K = 15 stored per keyframe, the ways to make it recall (docs/DETECTOR.md, "Sparse
 # K = 15"), beside the symmetric K = 15 of the paper and the default. name -> (label, detector).
 def sparse_variants():
-    k15 = {"features": {"max_features": 15}}
+    # The ingredients alone: without the appearance fallback (on by default since session 21),
+    # which the preset adds.
+    k15 = {"features": {"max_features": 15}, "appearance_fallback": False}
     return {
         "sparse_sym": ("K = 15 symmetric (the paper)", k15),
         "sparse_asym": ("K = 15 asymmetric", {**k15, "asymmetric_matching": True}),
@@ -103,9 +108,11 @@ def sparse_variants():
 
 
 ABLATION_LABELS = {
-    "default": "default (paper search + uncertainty area, response ranking, mapped pixels)",
+    "default": "default (paper search + uncertainty area + appearance fallback, response ranking, "
+               "mapped pixels)",
     "search_paper_only": "paper area only (before session 19)",
-    "search_paper_drift": "paper + drift tolerance 5 % (no uncertainty area)",
+    "search_no_fallback": "default without the appearance fallback (before session 21)",
+    "search_paper_drift": "paper + drift tolerance 5 % (no uncertainty area, no fallback)",
     "search_radius": "radius 20 (raw units)",
     "search_global": "global (every past keyframe)",
     "rank_popcount": "popcount ranking (the paper's)",

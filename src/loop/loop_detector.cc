@@ -95,6 +95,8 @@ void LoopDetector::Options::Check() const {
                verify_close_fraction, max_verify_close);
   SL_CHECK_MSG(std::isfinite(max_loop_distance_steps) && max_loop_distance_steps >= 0,
                "max_loop_distance_steps must be >= 0, got {}", max_loop_distance_steps);
+  SL_CHECK_MSG(loop_distance_window >= 0, "loop_distance_window must be >= 0, got {}",
+               loop_distance_window);
   SL_CHECK_MSG(std::isfinite(min_path_ratio) && min_path_ratio >= 0,
                "min_path_ratio must be >= 0, got {}", min_path_ratio);
   SL_CHECK_MSG(overlap_gap >= 0 && overlap_max_walk >= 0,
@@ -115,11 +117,12 @@ void LoopDetector::Options::Check() const {
                "planar_alternative_tolerance must be in (0, 1], got {}",
                planar_alternative_tolerance);
   SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
-  SL_CHECK_MSG(
-      fallback_candidates >= 0 && fallback_rank_features >= 0 && fallback_coarse_features >= 0,
-      "fallback_candidates, fallback_rank_features and fallback_coarse_features must be "
-      ">= 0, got {}, {} and {}",
-      fallback_candidates, fallback_rank_features, fallback_coarse_features);
+  SL_CHECK_MSG(fallback_candidates >= 0 && fallback_rank_features >= 0 &&
+                   fallback_coarse_features >= 0 && fallback_fine_features >= 0,
+               "fallback_candidates, fallback_rank_features, fallback_coarse_features and "
+               "fallback_fine_features must be >= 0, got {}, {}, {} and {}",
+               fallback_candidates, fallback_rank_features, fallback_coarse_features,
+               fallback_fine_features);
   SL_CHECK_MSG(pose_jump_factor >= 0 && pose_jump_max_deg >= 0,
                "pose_jump_factor and pose_jump_max_deg must be >= 0 (0: off), got {} and {}",
                pose_jump_factor, pose_jump_max_deg);
@@ -361,6 +364,7 @@ std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& que
   ro.keep = static_cast<size_t>(options_.fallback_candidates);
   ro.coarse_features = static_cast<size_t>(options_.fallback_coarse_features);
   ro.coarse_keep = 10 * ro.keep;
+  ro.fine_features = static_cast<size_t>(options_.fallback_fine_features);
   ro.max_distance = options_.match.max_distance;
   const std::vector<size_t> best = RankByProbe(
       indices.size(), [&](size_t i) { return records_[indices[i]].descriptors(); }, probe, ro);

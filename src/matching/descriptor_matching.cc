@@ -139,7 +139,8 @@ std::vector<size_t> RankByProbe(size_t n,
     candidates = BestByProbe(candidates, stored, probe, options.coarse_features,
                              std::max(options.coarse_keep, options.keep), options.max_distance);
   }
-  return BestByProbe(candidates, stored, probe, 0, options.keep, options.max_distance);
+  return BestByProbe(candidates, stored, probe, options.fine_features, options.keep,
+                     options.max_distance);
 }
 
 }  // namespace sparseloop

@@ -277,6 +277,9 @@ void AddDetectorPolicyKeys(KeyList& k) {
   k.Add(d + "fallback_coarse_features", SL_FIELD(detector.fallback_coarse_features), "features",
         "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
         "on this many stored descriptors each (0: off)");
+  k.Add(d + "fallback_fine_features", SL_FIELD(detector.fallback_fine_features), "features",
+        "appearance fallback pre-ranking: the last stage scores this many stored descriptors "
+        "per keyframe (0: all K)");
   k.Add(d + "pose_jump_factor", SL_FIELD(detector.pose_jump_factor), "",
         "a raw step this x the usual one starts a new pose segment (0: off)");
   k.Add(d + "pose_jump_max_deg", SL_FIELD(detector.pose_jump_max_deg), "deg",
@@ -313,8 +316,12 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
-  k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "mean steps",
-        "reject a metric loop whose query is farther than this from the match (0: off)");
+  k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "steps",
+        "reject a metric loop whose query is farther than this many raw steps (mean around the "
+        "match) from it (0: off)");
+  k.Add(d + "loop_distance_window", SL_FIELD(detector.loop_distance_window), "keyframes",
+        "keyframes each side of the match whose raw steps measure the step for "
+        "max_loop_distance_steps (0: the whole path's mean step)");
   k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
         "reject loops whose rotation disagrees with the pose prior");
   k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",

@@ -400,9 +400,10 @@ TEST(LoopDetector, RawPoseResetStartsASegmentSearchedByAppearance) {
   const int64_t last = static_cast<int64_t>(frames.size()) - 1;
   // x along the path, 10 units per keyframe; `jump`: keyframes >= 10 are 10,000 units away.
   std::unique_ptr<LoopDetector> kept;  // the detector of the last run
-  const auto run = [&](bool jump, bool flag, double jump_factor) {
+  const auto run = [&](bool jump, bool flag, double jump_factor, bool fallback = true) {
     LoopDetector::Options o = RadiusSearch(5.0);
     o.pose_jump_factor = jump_factor;
+    o.appearance_fallback = fallback;
     kept = std::make_unique<LoopDetector>(o);
     LoopDetector& detector = *kept;
     std::vector<LoopResult> results;
@@ -436,10 +437,16 @@ TEST(LoopDetector, RawPoseResetStartsASegmentSearchedByAppearance) {
   ASSERT_TRUE(direct.detected()) << ToString(direct.status);
   EXPECT_EQ(direct.source, CandidateSource::kEarlierSegment);
   EXPECT_TRUE(direct.relocalization);
-  // The same jump, unnoticed: the area is built across both frames and holds nothing near.
-  const LoopResult lost = run(true, false, 0.0).back();
+  // The same jump, unnoticed: the area is built across both frames and holds nothing near; only
+  // the appearance fallback (default on) finds the place, as a loop in one (wrong) world frame.
+  const LoopResult lost = run(true, false, 0.0, false).back();
   EXPECT_FALSE(lost.detected()) << ToString(lost.status);
   EXPECT_EQ(lost.pose_reset, PoseReset::kNone);
+  const LoopResult by_appearance = run(true, false, 0.0).back();
+  ASSERT_TRUE(by_appearance.detected()) << ToString(by_appearance.status);
+  EXPECT_EQ(by_appearance.match_id, 1);
+  EXPECT_EQ(by_appearance.source, CandidateSource::kAppearance);
+  EXPECT_FALSE(by_appearance.relocalization);
 
   // No jump in the numbers: only the caller knows. Unflagged, the area finds keyframe 1 as a
   // loop in one world frame; flagged, the area of the new segment cannot hold it.

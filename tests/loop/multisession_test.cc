@@ -141,6 +141,15 @@ class MultiSession : public ::testing::Test {
                  Eigen::Vector3d(100.0, -50.0, 7.0));
   }
 
+  // Options::loop_distance_window's step (10 keyframes each side of match m, before query q),
+  // from the raw positions fed to the detector.
+  static double LocalStep(const std::vector<Eigen::Vector3d>& raw, size_t m, size_t q) {
+    const size_t lo = m >= 10 ? m - 10 : 0, hi = std::min(m + 10, q - 1);
+    double path = 0.0;
+    for (size_t i = lo; i < hi; ++i) path += (raw[i + 1] - raw[i]).norm();
+    return path / static_cast<double>(hi - lo);
+  }
+
   static double DistanceDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
     return a.angularDistance(b) * 180.0 / M_PI;
   }
@@ -155,20 +164,16 @@ std::vector<Frame>* MultiSession::session2_ = nullptr;
 
 // A loop is a revisit (LoopDetector::Options::max_loop_distance_steps): one session flies the
 // circuit, then flies on around it again 7.2 m to the side (session 2's frames, raw = GT, metres,
-// depths given: metric loops; one pose segment, no jump). The mean raw step is ~8 m: with the gate
-// at 0.5 mean steps no metric loop farther than that is kept (those frames end
+// depths given: metric loops; one pose segment, no jump). The raw step is ~8 m: with the gate
+// at 0.5 steps (around the match) no metric loop farther than that is kept (those frames end
 // rejected_by_consistency or find a nearer match), while the default 10 steps keeps them.
-TEST_F(MultiSession, RevisitDistanceGateRejectsMetricLoopsFartherThanTheMeanSteps) {
+TEST_F(MultiSession, RevisitDistanceGateRejectsMetricLoopsFartherThanTheSteps) {
   std::vector<Frame> frames = *session1_;
   // Session 2's frame k is at pose k + 20 (+ the offset): continue the circuit from pose 0.
   for (size_t k = 0; k < session2_->size(); ++k)
     frames.push_back((*session2_)[(k + 40) % session2_->size()]);
-  std::vector<double> mean_step(frames.size(), 0.0);  // path length / keyframes, at each one
-  double path = 0.0;
-  for (size_t i = 1; i < frames.size(); ++i) {
-    path += (frames[i].gt.translation - frames[i - 1].gt.translation).norm();
-    mean_step[i] = path / static_cast<double>(i);
-  }
+  std::vector<Eigen::Vector3d> raw;  // raw = GT here
+  for (const Frame& f : frames) raw.push_back(f.gt.translation);
   const auto metric = [](const LoopResult& r) {
     return r.detected() &&
            (r.pose_kind == RelativePoseKind::kSim3 || r.pose_kind == RelativePoseKind::kSE3Metric);
@@ -186,22 +191,65 @@ TEST_F(MultiSession, RevisitDistanceGateRejectsMetricLoopsFartherThanTheMeanStep
   const std::vector<LoopResult> gated = run(0.5);
   int far_kept = 0, gated_far = 0, rejected = 0;
   for (size_t i = session1_->size(); i < frames.size(); ++i) {
-    const double limit = 0.5 * mean_step[i];
-    if (metric(kept[i]) && kept[i].match_from_query.translation.norm() > limit) ++far_kept;
-    if (metric(gated[i]) && gated[i].match_from_query.translation.norm() > limit) {
+    const auto limit = [&](const LoopResult& r) {
+      return 0.5 * LocalStep(raw, static_cast<size_t>(r.match_id), i);
+    };
+    if (metric(kept[i]) && kept[i].match_from_query.translation.norm() > limit(kept[i])) ++far_kept;
+    if (metric(gated[i]) && gated[i].match_from_query.translation.norm() > limit(gated[i])) {
       ++gated_far;
       ADD_FAILURE() << "frame " << i << " kept a metric loop "
                     << gated[i].match_from_query.translation.norm() << " m from its match (limit "
-                    << limit << " m)";
+                    << limit(gated[i]) << " m)";
     }
     rejected += gated[i].status == LoopStatus::kRejectedByConsistency;
   }
   std::cerr << far_kept
-            << " metric loops beyond 0.5 mean steps with the default gate; gated: " << rejected
+            << " metric loops beyond 0.5 steps with the default gate; gated: " << rejected
             << " frames rejected_by_consistency\n";
   EXPECT_GE(far_kept, 10) << "the test needs metric loops beyond the gate";
   EXPECT_EQ(gated_far, 0);
   EXPECT_GE(rejected, far_kept / 3) << "far loops rejected (or replaced by a nearer match)";
+}
+
+// The gate's step is the raw step around the match (Options::loop_distance_window), because a
+// metric loop's translation is in the match's raw units and a monocular trajectory's scale
+// drifts. Here the second lap's raw scale is 3x the first's (raw steps and depths, scaled about
+// the lap's start, as a vSLAM whose scale grew): the run's mean step is then ~2x the first lap's,
+// so "0.5 mean steps" keeps the loops 7.2 m to the side that 0.5 of the match's own steps (~4 m)
+// rejects. The window's gate keeps none beyond 0.5 local steps; the whole path's mean keeps some.
+TEST_F(MultiSession, RevisitDistanceGateMeasuresStepsAroundTheMatch) {
+  std::vector<Frame> frames = *session1_;
+  for (size_t k = 0; k < session2_->size(); ++k)
+    frames.push_back((*session2_)[(k + 40) % session2_->size()]);
+  const size_t lap2 = session1_->size();
+  const Eigen::Vector3d start = frames[lap2].gt.translation;
+  const Sim3d raw_from_gt_lap2 = Sim3d(3.0, Eigen::Quaterniond::Identity(), -2.0 * start);
+  std::vector<Eigen::Vector3d> raw(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i)
+    raw[i] = i < lap2 ? frames[i].gt.translation : raw_from_gt_lap2 * frames[i].gt.translation;
+  const auto run = [&](int window) {
+    LoopDetector::Options o = Options();
+    o.appearance_fallback = true;  // lap 2's raw positions are far from lap 1's
+    o.max_loop_distance_steps = 0.5;
+    o.loop_distance_window = window;
+    LoopDetector d(o);
+    int beyond = 0, metric = 0;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const LoopResult r = d.Process(
+          Input(frames[i], int64_t(i), i < lap2 ? Sim3d() : raw_from_gt_lap2, true, true));
+      if (!r.detected() ||
+          (r.pose_kind != RelativePoseKind::kSim3 && r.pose_kind != RelativePoseKind::kSE3Metric))
+        continue;
+      ++metric;
+      const size_t m = static_cast<size_t>(r.match_id);
+      beyond += r.match_from_query.translation.norm() > 0.5 * LocalStep(raw, m, i);
+    }
+    std::cerr << "window " << window << ": " << metric << " metric loops, " << beyond
+              << " beyond 0.5 steps around the match\n";
+    return beyond;
+  };
+  EXPECT_EQ(run(10), 0);
+  EXPECT_GE(run(0), 3) << "the whole path's mean step lets loops 7.2 m to the side through";
 }
 
 TEST_F(MultiSession, StoredRecordRoundTripKeepsWhatMatchingNeeds) {

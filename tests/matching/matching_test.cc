@@ -169,6 +169,20 @@ TEST(Matching, RankByProbeIsTheBruteForceRankingAndTheCoarseStageKeepsRevisits) 
   EXPECT_EQ(first3(two), (std::vector<size_t>{123, 777, 1999}));
   o.coarse_keep = records.size();
   EXPECT_EQ(RankByProbe(records.size(), stored, probe, o), one);
+  // fine_features: the last stage scores the first 8 of 15; the planted revisits hold the probe
+  // in their first 6, so they still come first, and the ranking is the brute force one over
+  // the first 8 descriptors.
+  o.fine_features = 8;
+  const std::vector<size_t> fine = RankByProbe(records.size(), stored, probe, o);
+  EXPECT_EQ(first3(fine), (std::vector<size_t>{123, 777, 1999}));
+  std::vector<std::pair<ProbeScore, size_t>> first8;
+  for (size_t i = 0; i < records.size(); ++i)
+    first8.push_back(
+        {ScoreAgainstProbe(std::span<const Descriptor>(records[i]).first(8), probe, 64), i});
+  std::stable_sort(first8.begin(), first8.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (size_t k = 0; k < fine.size(); ++k) EXPECT_EQ(fine[k], first8[k].second) << k;
+  o.fine_features = 0;
   // n <= keep: every index, in order.
   o.keep = 5000;
   const std::vector<size_t> every = RankByProbe(records.size(), stored, probe, o);

@@ -263,13 +263,18 @@ class LoopDetector {
     // can pick the wrong one of two supported solutions) two_view_consistency_per_keyframe_deg.
     // Degrees.
     // A loop is a revisit: a pose from 3D points (PnP / Sim(3), metric translation) that puts the
-    // query farther than max_loop_distance_steps x the mean raw step (path length / keyframes)
-    // from the match is rejected (status rejected_by_consistency), and the next candidate is
-    // tried. With a wide search area (search.drift_rate) the camera finds the places it keeps
-    // seeing down a long street, 20-80 m on (street00: 27 such loops, each with a correct
-    // relative pose, but no revisit; docs/DETECTOR.md, "Search area under drift"). Mean steps;
-    // 0 disables; applies from the 10th keyframe, within one raw pose segment.
+    // query farther than max_loop_distance_steps x the raw step from the match is rejected
+    // (status rejected_by_consistency), and the next candidate is tried. The step is the mean raw
+    // step of the posed keyframes within loop_distance_window of the match (its segment, before
+    // the query; 0 or none: the whole path's mean): the translation is in the match's raw units,
+    // and a monocular scale drifts (street00 x4: 1.05 raw units per keyframe around keyframe 207,
+    // 4.7 on average; "10 mean steps" let a loop 21.8 m from its match through). With a wide search
+    // area (search.drift_rate) the camera finds the places it keeps seeing down a long street,
+    // 20-80 m on (street00: 27 such loops, each with a correct relative pose, but no revisit;
+    // docs/DETECTOR.md, "Search area under drift"). Steps; 0 disables; applies from the 10th
+    // keyframe, within one raw pose segment. Window: keyframes each side, >= 0.
     double max_loop_distance_steps = 10.0;
+    int loop_distance_window = 10;
     bool check_consistency = true;
     double consistency_base_deg = 10.0;
     double consistency_per_keyframe_deg = 1.0;
@@ -318,7 +323,12 @@ class LoopDetector {
     // rotation gate. Drift moves the true match out of the wedge (aerial circuit, K = 15:
     // recall 0.64 in the area, 0.97 with global search); a small K makes ranking all of them
     // cheap (15 x 15 Hamming per stored keyframe). LoopResult::source says which one found it.
-    bool appearance_fallback = false;
+    // On by default since session 21: at K = 300 on street00 at --drift 4 (raw t_err 28 %) the
+    // loops it finds where the area holds nothing tie the two passes, and the uncertainty area
+    // through them then holds the true match for 0.95 of the revisits (0.80 without), recall
+    // 0.76 -> 0.79 after the graph, corrected ATE 35 -> 4.2 m, zero false loops accepted; the
+    // other renders unchanged; ~1.5x the median time per keyframe (docs/SEARCH_AREA.md).
+    bool appearance_fallback = true;
     // The fallback's cheap pre-ranking (issue #19, its verification tail; issue #17, a fallback
     // that stays cheap as the map grows): every eligible stored keyframe is scored by how many of
     // its K descriptors have a neighbour within match.max_distance among the query's own stored K
@@ -333,6 +343,11 @@ class LoopDetector {
     // 10 x fallback_candidates best go on to the full score (a large map: issue #17's <= 2 ms at
     // 10,000 stored keyframes). 0: score every eligible keyframe in full.
     int fallback_coarse_features = 4;
+    // The full score of the coarse stage's survivors uses each keyframe's first
+    // fallback_fine_features stored descriptors (its best ranked; 0: all K). At K = 15 it is
+    // all of them; at K = 300 scoring all 300 against the query's 300 for 200 keyframes took
+    // 16 ms per keyframe (street00, session 21), 32 of them ~2 ms with the same loops.
+    int fallback_fine_features = 32;
     // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; issue #17, bad input):
     // a posed keyframe starts a new pose segment when its raw step from the posed keyframe before
     // is longer than pose_jump_factor x the segment's usual step (the larger of the median of its
@@ -553,6 +568,8 @@ class LoopDetector {
   // Options::max_loop_distance_steps: a metric pose puts the query too far from the match.
   bool TooFarForARevisit(const KeyframeRecord& query, const KeyframeRecord& match,
                          size_t query_index, size_t match_index, const LoopResult& trial) const;
+  // The mean raw step around the match (Options::loop_distance_window), raw units per keyframe.
+  double LocalStep(size_t match_index, size_t query_index) const;
   std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
   // The latest query with a verified pair that passed the rotation gate, weak or not (query
   // index, match index): Options::weak_min_inliers.

@@ -76,6 +76,9 @@ struct ProbeRankOptions {
   // coarse_keep best, then score those with all their descriptors. 0: one stage.
   size_t coarse_features = 0;
   size_t coarse_keep = 200;
+  // The last stage scores each keyframe by its first fine_features stored descriptors (0: all):
+  // at a large K the full K x probe score of every coarse survivor is the fallback's main cost.
+  size_t fine_features = 0;
   int max_distance = 64;  // bits
 };
 // Indices (into 0..n-1) of the `keep` best keyframes, best first (ties: lower index first); all of
