@@ -261,7 +261,12 @@ int VerifyCount(const LoopDetector::Options& o,
                 const std::vector<loop_internal::RankedCandidate>& ranked) {
   const int available = static_cast<int>(ranked.size());
   int n = std::min(o.max_verify, available);
-  if (o.verify_close_fraction <= 0 || n == 0) return n;
+  // Not in the small-K regime (the floors lowered below min_matches): there the match counts
+  // are small integers, most candidates are "close", and verifying up to max_verify_close of
+  // them let two false weak pairs through on aerial_circuit (K = 15 preset: corrected ATE 4.0 ->
+  // 22 m; session 21).
+  const bool small_k = o.EffectiveMinMatches() < o.min_matches;
+  if (o.verify_close_fraction <= 0 || n == 0 || small_k) return n;
   // The next candidates while their match count is near the max_verify-th's.
   const double floor = o.verify_close_fraction * static_cast<double>(ranked[n - 1].matches.size());
   const int cap = std::min(std::max(o.max_verify_close, n), available);

@@ -354,8 +354,11 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
 
 std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& query, size_t index,
                                                        const std::vector<size_t>& indices) const {
-  // The query's own K (its repeatable features when ranked so), then its best extracted ones.
-  const std::span<const Descriptor> own = records_[index].descriptors();
+  // The query's own K (its repeatable features when ranked so; its first fallback_fine_features
+  // at a large K, as on the stored side), then its best extracted ones.
+  std::span<const Descriptor> own = records_[index].descriptors();
+  if (options_.fallback_fine_features > 0)
+    own = own.first(std::min(own.size(), static_cast<size_t>(options_.fallback_fine_features)));
   std::vector<Descriptor> probe(own.begin(), own.end());
   const size_t extra =
       std::min(query.descriptors.size(), static_cast<size_t>(options_.fallback_rank_features));

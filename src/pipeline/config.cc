@@ -278,8 +278,8 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
         "on this many stored descriptors each (0: off)");
   k.Add(d + "fallback_fine_features", SL_FIELD(detector.fallback_fine_features), "features",
-        "appearance fallback pre-ranking: the last stage scores this many stored descriptors "
-        "per keyframe (0: all K)");
+        "appearance fallback pre-ranking: stored descriptors per keyframe and query "
+        "descriptors in the probe, the first this many (0: all K)");
   k.Add(d + "pose_jump_factor", SL_FIELD(detector.pose_jump_factor), "",
         "a raw step this x the usual one starts a new pose segment (0: off)");
   k.Add(d + "pose_jump_max_deg", SL_FIELD(detector.pose_jump_max_deg), "deg",

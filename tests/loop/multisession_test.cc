@@ -141,10 +141,12 @@ class MultiSession : public ::testing::Test {
                  Eigen::Vector3d(100.0, -50.0, 7.0));
   }
 
-  // Options::loop_distance_window's step (10 keyframes each side of match m, before query q),
+  // Options::loop_distance_window's step (w keyframes each side of match m, before query q),
   // from the raw positions fed to the detector.
-  static double LocalStep(const std::vector<Eigen::Vector3d>& raw, size_t m, size_t q) {
-    const size_t lo = m >= 10 ? m - 10 : 0, hi = std::min(m + 10, q - 1);
+  static double LocalStep(
+      const std::vector<Eigen::Vector3d>& raw, size_t m, size_t q,
+      size_t w = static_cast<size_t>(LoopDetector::Options{}.loop_distance_window)) {
+    const size_t lo = m >= w ? m - w : 0, hi = std::min(m + w, q - 1);
     double path = 0.0;
     for (size_t i = lo; i < hi; ++i) path += (raw[i + 1] - raw[i]).norm();
     return path / static_cast<double>(hi - lo);
@@ -242,13 +244,13 @@ TEST_F(MultiSession, RevisitDistanceGateMeasuresStepsAroundTheMatch) {
         continue;
       ++metric;
       const size_t m = static_cast<size_t>(r.match_id);
-      beyond += r.match_from_query.translation.norm() > 0.5 * LocalStep(raw, m, i);
+      beyond += r.match_from_query.translation.norm() > 0.5 * LocalStep(raw, m, i, 10);
     }
     std::cerr << "window " << window << ": " << metric << " metric loops, " << beyond
               << " beyond 0.5 steps around the match\n";
     return beyond;
   };
-  EXPECT_EQ(run(10), 0);
+  EXPECT_EQ(run(10), 0);  // a 10-keyframe window: a lap here is 60 keyframes
   EXPECT_GE(run(0), 3) << "the whole path's mean step lets loops 7.2 m to the side through";
 }
 

@@ -205,7 +205,9 @@ class LoopDetector {
     // drift the true match need not rank in the top three by matches when several places look
     // alike. Measured (session 19, K = 300, raw poses): street00 x1 recall@100%P 0.83 -> 0.90
     // (0.8, 8), street00 x4, street05 x1 / x4, street07, the aerial renders unchanged, zero false
-    // loops accepted in each (docs/SEARCH_AREA.md). Fraction in [0, 1] (0: off); count >= 1.
+    // loops accepted in each (docs/SEARCH_AREA.md). Not below K = 30, where the small-K floors
+    // apply: match counts of 6-15 make most candidates "close" (K = 15 preset, aerial_circuit:
+    // 2 false weak pairs accepted with it, none without). Fraction in [0, 1] (0: off); count >= 1.
     double verify_close_fraction = 0.8;
     int max_verify_close = 8;
     // The inlier threshold grows with K: a pair needs max(verify.min_inliers,
@@ -268,13 +270,16 @@ class LoopDetector {
     // step of the posed keyframes within loop_distance_window of the match (its segment, before
     // the query; 0 or none: the whole path's mean): the translation is in the match's raw units,
     // and a monocular scale drifts (street00 x4: 1.05 raw units per keyframe around keyframe 207,
-    // 4.7 on average; "10 mean steps" let a loop 21.8 m from its match through). With a wide search
+    // 4.7 on average; "10 mean steps" let a loop 21.8 m from its match through). 50 keyframes
+    // each side, not 10: the speed varies faster than the scale (street07 starts from standstill,
+    // 0.4-0.6 raw units per keyframe against 1.3 on average, and with 10 its true loops 6-8 m
+    // from the match were 11-14 steps; with 50, 7; the 21.8 m loop above is 15). With a wide search
     // area (search.drift_rate) the camera finds the places it keeps seeing down a long street,
     // 20-80 m on (street00: 27 such loops, each with a correct relative pose, but no revisit;
     // docs/DETECTOR.md, "Search area under drift"). Steps; 0 disables; applies from the 10th
     // keyframe, within one raw pose segment. Window: keyframes each side, >= 0.
     double max_loop_distance_steps = 10.0;
-    int loop_distance_window = 10;
+    int loop_distance_window = 50;
     bool check_consistency = true;
     double consistency_base_deg = 10.0;
     double consistency_per_keyframe_deg = 1.0;
@@ -343,10 +348,11 @@ class LoopDetector {
     // 10 x fallback_candidates best go on to the full score (a large map: issue #17's <= 2 ms at
     // 10,000 stored keyframes). 0: score every eligible keyframe in full.
     int fallback_coarse_features = 4;
-    // The full score of the coarse stage's survivors uses each keyframe's first
-    // fallback_fine_features stored descriptors (its best ranked; 0: all K). At K = 15 it is
-    // all of them; at K = 300 scoring all 300 against the query's 300 for 200 keyframes took
-    // 16 ms per keyframe (street00, session 21), 32 of them ~2 ms with the same loops.
+    // The ranking uses the first fallback_fine_features stored descriptors of each keyframe and
+    // of the query's probe (their best ranked; 0: all K). At K = 15 it is all of them; at K = 300
+    // scoring all 300 against the query's 300 for 200 keyframes took 16 ms per keyframe
+    // (street00, session 21), and the coarse stage over 10,000 keyframes would be 12 M
+    // distances; 32 of them: ~2 ms, the same loops.
     int fallback_fine_features = 32;
     // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; issue #17, bad input):
     // a posed keyframe starts a new pose segment when its raw step from the posed keyframe before
