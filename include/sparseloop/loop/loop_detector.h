@@ -331,7 +331,7 @@ class LoopDetector {
     // On by default since session 21: at K = 300 on street00 at --drift 4 (raw t_err 28 %) the
     // loops it finds where the area holds nothing tie the two passes, and the uncertainty area
     // through them then holds the true match for 0.95 of the revisits (0.80 without), recall
-    // 0.76 -> 0.79 after the graph, corrected ATE 35 -> 4.2 m, zero false loops accepted; the
+    // 0.76 -> 0.78 after the graph, corrected ATE 35 -> 7.0 m, zero false loops accepted; the
     // other renders unchanged; ~1.5x the median time per keyframe (docs/SEARCH_AREA.md).
     bool appearance_fallback = true;
     // The fallback's cheap pre-ranking (issue #19, its verification tail; issue #17, a fallback
