@@ -283,41 +283,49 @@ BENCHMARK(BM_QueryStoredKeyframes)
     ->Args({10000, 300})
     ->Unit(benchmark::kMicrosecond);
 
-// The appearance fallback's matching over N stored K = 15 records (issue #17: <= 2 ms at 10,000
-// stored keyframes; issue #19: its tail). Arg variant 0: LoopDetector's default pre-ranking
-// (RankByProbe: a coarse stage on the first 4 stored descriptors of every record, the 200 best
-// scored in full against the query's own 15, the 20 best of those matched with the query's whole
-// extraction of 1,000); 2: the same without the coarse stage (session 18's first version); 1:
-// every record matched with the whole extraction (the fallback before session 18). Verification
-// is not timed (synthetic records do not verify). The query revisits record N / 2 (its 15
-// planted, with noise, in its extraction).
+// The appearance fallback's matching over N stored records (issue #17: <= 2 ms at 10,000 stored
+// keyframes; issue #19: its tail). Arg k: the stored K. At K = 15 (the sparse preset: asymmetric
+// matching) the query keeps its 15 and matches with its whole extraction of 1,000; at K = 300 (the
+// default: symmetric) the query's record is its extraction. Arg variant 0: LoopDetector's default
+// pre-ranking (RankByProbe: a coarse stage on the first 4 stored descriptors of every record, the
+// 200 best scored on their first fallback_fine_features (32) against the query's, the 20 best of
+// those matched in full); 2: the same without the coarse stage (session 18's first version); 1:
+// every record matched in full (the fallback before session 18). Verification is not timed
+// (synthetic records do not verify). The query revisits record N / 2 (its K planted, with noise,
+// in the query's extraction).
 void BM_AppearanceFallback(benchmark::State& state) {
   const int64_t n = state.range(0);
   const int64_t variant = state.range(1);
-  constexpr int kStored = 15, kQuery = 1000;
+  const int k_stored = static_cast<int>(state.range(2));
+  const bool asymmetric = k_stored < 30;
+  const int k_query = asymmetric ? 1000 : k_stored;
+  const int stride = k_query / k_stored;
   const LoopDetector::Options defaults{LoopDetector::Options{}};
   std::mt19937_64 rng(11);
   std::vector<KeyframeRecord> records;
   records.reserve(n);
-  for (int64_t i = 0; i < n; ++i) records.push_back(SyntheticRecord(i, kStored, rng));
-  KeyframeRecord query = SyntheticRecord(n, kQuery, rng);
+  for (int64_t i = 0; i < n; ++i) records.push_back(SyntheticRecord(i, k_stored, rng));
+  KeyframeRecord query = SyntheticRecord(n, k_query, rng);
   const KeyframeRecord& revisit = records[static_cast<size_t>(n / 2)];
-  for (int j = 0; j < kStored; ++j) {
+  for (int j = 0; j < k_stored; ++j) {
     Descriptor d = revisit.descriptors[j];
     for (int b = 0; b < 20; ++b) {  // 20 random bits flipped
       const uint64_t bit = rng() % 256;
       d[bit / 64] ^= 1ull << (bit % 64);
     }
-    query.descriptors[static_cast<size_t>(40 * j)] = d;
+    query.descriptors[static_cast<size_t>(stride * j)] = d;
   }
-  // The query's own stored 15: the features it would keep (here the planted ones).
+  // The query's own stored K (here the planted ones), capped as PreRankByAppearance caps them.
   std::vector<Descriptor> own;
-  for (int j = 0; j < kStored; ++j) own.push_back(query.descriptors[static_cast<size_t>(40 * j)]);
+  const int own_count = std::min(k_stored, defaults.fallback_fine_features);
+  for (int j = 0; j < own_count; ++j)
+    own.push_back(query.descriptors[static_cast<size_t>(stride * j)]);
   MatchOptions mo;
   ProbeRankOptions ro;
   ro.keep = static_cast<size_t>(defaults.fallback_candidates);
   ro.coarse_features = variant == 0 ? static_cast<size_t>(defaults.fallback_coarse_features) : 0;
   ro.coarse_keep = 10 * ro.keep;
+  ro.fine_features = static_cast<size_t>(defaults.fallback_fine_features);
   ro.max_distance = mo.max_distance;
   int64_t best_id = -1;
   size_t matched_in_full = 0;
@@ -333,7 +341,9 @@ void BM_AppearanceFallback(benchmark::State& state) {
     }
     size_t best = 0;
     for (const size_t i : ranked) {
-      const size_t m = MatchStoredIntoQuery(query.descriptors, records[i].descriptors, mo).size();
+      const size_t m =
+          asymmetric ? MatchStoredIntoQuery(query.descriptors, records[i].descriptors, mo).size()
+                     : MatchDescriptors(query.descriptors, records[i].descriptors, mo).size();
       if (m > best) best = m, best_id = records[i].id;
     }
     matched_in_full = ranked.size();
@@ -343,13 +353,16 @@ void BM_AppearanceFallback(benchmark::State& state) {
   state.counters["matched_in_full"] = static_cast<double>(matched_in_full);
 }
 BENCHMARK(BM_AppearanceFallback)
-    ->ArgNames({"stored", "variant"})
-    ->Args({1000, 0})
-    ->Args({10000, 0})
-    ->Args({1000, 2})
-    ->Args({10000, 2})
-    ->Args({1000, 1})
-    ->Args({10000, 1})
+    ->ArgNames({"stored", "variant", "k"})
+    ->Args({1000, 0, 15})
+    ->Args({10000, 0, 15})
+    ->Args({1000, 2, 15})
+    ->Args({10000, 2, 15})
+    ->Args({1000, 1, 15})
+    ->Args({10000, 1, 15})
+    ->Args({1000, 0, 300})
+    ->Args({10000, 0, 300})
+    ->Args({10000, 1, 300})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace

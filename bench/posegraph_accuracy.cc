@@ -1,7 +1,7 @@
 // Pose-graph accuracy numbers for docs/BENCHMARKS.md, as ONE JSON object on stdout.
 //
 //   posegraph_accuracy [--data DIR]
-//   posegraph_accuracy --oracle RAW GT [--revisit M] [--min-gap KEYFRAMES]
+//   posegraph_accuracy --oracle RAW GT [--revisit M] [--min-gap KEYFRAMES] [--scales FILE]
 //
 // DIR is the shared real-data folder (default: $SPARSELOOP_DATA, else the configured
 // SPARSELOOP_DATA_DIR, i.e. ../shared/data next to the repository). Exit code 2 with a message on
@@ -17,11 +17,16 @@
 // --oracle: the limit of loop correction on one raw trajectory (KITTI files associated by row,
 // e.g. a render's poses_raw.txt / poses_gt.txt): EXACT loops from the GT at every revisit (GT
 // closer than --revisit metres, default 10, at least --min-gap keyframes apart, default 100, one
-// per query keyframe), default pose-graph options; prints raw and corrected ATE and KITTI t_err.
-// What real loops cannot beat: the drift they do not observe.
+// per query keyframe), one solve with all of them (no outlier rejection: they are exact) and, the
+// `pcm_*` figures, one with the default options; prints raw and corrected ATE and KITTI t_err.
+// What real loops cannot beat: the drift they do not observe. The loops' relative scale comes from
+// --scales (one number per row: a render's raw_scale.txt, the simulated drift's exact scale) or,
+// without it, from LocalScales (a windowed alignment, wrong where the scale drifts fast).
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -108,14 +113,47 @@ double TErr(const TrajectoryEvaluation& e) {
   return e.kitti && e.kitti->t_err_pct ? *e.kitti->t_err_pct : NAN;
 }
 
+// One number per line; nullopt (with a message naming the file and line) on anything else.
+std::optional<std::vector<double>> ReadScales(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) {
+    std::cerr << "posegraph_accuracy: --scales " << path << ": cannot open\n";
+    return std::nullopt;
+  }
+  std::vector<double> out;
+  std::string line;
+  for (int line_no = 1; std::getline(in, line); ++line_no) {
+    char* end = nullptr;
+    const double v = std::strtod(line.c_str(), &end);
+    if (end == line.c_str() || !std::isfinite(v) || v <= 0) {
+      std::cerr << "posegraph_accuracy: --scales " << path << " line " << line_no
+                << ": expected one positive number, got '" << line << "'\n";
+      return std::nullopt;
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
 int Oracle(const std::filesystem::path& raw_path, const std::filesystem::path& gt_path,
-           double revisit_m, int64_t min_gap) {
+           double revisit_m, int64_t min_gap, const std::filesystem::path& scales_path,
+           double sigma_factor, double odometry_factor) {
   const Trajectory raw = ReadTrajectory(raw_path);
   const Trajectory gt = ReadTrajectory(gt_path);
   if (raw.size() != gt.size() || raw.size() < 2) {
     std::cerr << "posegraph_accuracy --oracle: " << raw_path << " has " << raw.size() << " poses, "
               << gt_path << " " << gt.size() << " (need the same number, >= 2)\n";
     return 2;
+  }
+  std::optional<std::vector<double>> scales;
+  if (!scales_path.empty()) {
+    scales = ReadScales(scales_path);
+    if (!scales) return 2;
+    if (scales->size() != raw.size()) {
+      std::cerr << "posegraph_accuracy: --scales " << scales_path << " has " << scales->size()
+                << " lines, " << raw_path << " " << raw.size() << " poses (need one per pose)\n";
+      return 2;
+    }
   }
   std::vector<Sim3d> raw_kf, gt_kf;
   for (size_t i = 0; i < raw.size(); ++i) {
@@ -128,23 +166,46 @@ int Oracle(const std::filesystem::path& raw_path, const std::filesystem::path& g
   o.query_stride = 1;
   o.scale_min_extent = 10.0;
   o.add_noise = false;
+  o.translation_noise *= sigma_factor;  // the loops' information only (they are exact)
+  o.rotation_noise_rad *= sigma_factor;
+  o.scale_noise *= sigma_factor;
   std::mt19937_64 rng(1);
-  const test::HarnessLoops loops = test::MakeHarnessLoops(raw_kf, gt_kf, o, rng);
+  const test::HarnessLoops loops =
+      test::MakeHarnessLoops(raw_kf, gt_kf, o, rng, scales ? &*scales : nullptr);
   std::vector<int64_t> ids(raw_kf.size());
   for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int64_t>(i);
-  PoseGraph graph = BuildOdometryGraph(ids, raw_kf, VertexType::kSim3);
-  for (const auto& l : loops.loops) graph.AddLoop(l);
-  graph.Optimize(PoseGraphOptions{});
-  Trajectory corrected = raw;
-  for (size_t i = 0; i < ids.size(); ++i)
-    corrected.poses[i].world_from_cam = graph.Pose(ids[i]).ToRigid();
+  auto evaluate = [&](const PoseGraph& graph) {
+    Trajectory corrected = raw;
+    for (size_t i = 0; i < ids.size(); ++i)
+      corrected.poses[i].world_from_cam = graph.Pose(ids[i]).ToRigid();
+    return EvaluateTrajectory(gt, corrected);
+  };
+  // Exact loops need no outlier rejection: the limit is the solve with all of them. Beside it the
+  // default options (PCM), which under strong drift reject exact loops too.
+  OdometryWeighting odometry;
+  odometry.translation_fraction *= odometry_factor;
+  odometry.rotation_sigma_rad *= odometry_factor;
+  odometry.scale_sigma *= odometry_factor;
+  auto solve = [&](OutlierRejection rejection, PoseGraphSummary* summary) {
+    PoseGraph graph = BuildOdometryGraph(ids, raw_kf, VertexType::kSim3, odometry);
+    for (const auto& l : loops.loops) graph.AddLoop(l);
+    PoseGraphOptions options;
+    options.rejection = rejection;
+    *summary = graph.Optimize(options);
+    return evaluate(graph);
+  };
+  PoseGraphSummary all_summary, pcm_summary;
   const TrajectoryEvaluation e_raw = EvaluateTrajectory(gt, raw);
-  const TrajectoryEvaluation e_cor = EvaluateTrajectory(gt, corrected);
+  const TrajectoryEvaluation e_cor = solve(OutlierRejection::kNone, &all_summary);
+  const TrajectoryEvaluation e_pcm = solve(OutlierRejection::kPcm, &pcm_summary);
   std::cout << fmt::format(
-      "{{\"keyframes\": {}, \"oracle_loops\": {}, \"raw_ate_m\": {}, \"corrected_ate_m\": {}, "
-      "\"raw_t_err_pct\": {}, \"corrected_t_err_pct\": {}}}\n",
-      raw_kf.size(), loops.loops.size(), Json(e_raw.ate.rmse), Json(e_cor.ate.rmse),
-      Json(TErr(e_raw)), Json(TErr(e_cor)));
+      "{{\"keyframes\": {}, \"oracle_loops\": {}, \"exact_scales\": {}, \"raw_ate_m\": {}, "
+      "\"corrected_ate_m\": {}, \"raw_t_err_pct\": {}, \"corrected_t_err_pct\": {}, "
+      "\"pcm_corrected_ate_m\": {}, \"pcm_corrected_t_err_pct\": {}, \"pcm_rejected_loops\": "
+      "{}}}\n",
+      raw_kf.size(), loops.loops.size(), scales ? "true" : "false", Json(e_raw.ate.rmse),
+      Json(e_cor.ate.rmse), Json(TErr(e_raw)), Json(TErr(e_cor)), Json(e_pcm.ate.rmse),
+      Json(TErr(e_pcm)), pcm_summary.rejected_loops.size());
   return 0;
 }
 
@@ -152,18 +213,30 @@ int Main(int argc, char** argv) {
   if (argc >= 4 && std::string(argv[1]) == "--oracle") {
     double revisit = 10.0;
     int64_t gap = 100;
+    std::filesystem::path scales;
+    double sigma = 1.0, odometry_sigma = 1.0;
     for (int i = 4; i + 1 < argc; i += 2) {
       const std::string a = argv[i];
       if (a == "--revisit") {
         revisit = std::atof(argv[i + 1]);
       } else if (a == "--min-gap") {
         gap = std::atoll(argv[i + 1]);
+      } else if (a == "--scales") {
+        scales = argv[i + 1];
+      } else if (a == "--loop-sigma") {
+        sigma = std::atof(argv[i + 1]);
+      } else if (a == "--odometry-sigma") {
+        odometry_sigma = std::atof(argv[i + 1]);
       } else {
         std::cerr << "posegraph_accuracy: unknown argument '" << a << "'\n";
         return 2;
       }
     }
-    return Oracle(argv[2], argv[3], revisit, gap);
+    if (!(sigma > 0) || !(odometry_sigma > 0)) {
+      std::cerr << "posegraph_accuracy: --loop-sigma and --odometry-sigma must be > 0\n";
+      return 2;
+    }
+    return Oracle(argv[2], argv[3], revisit, gap, scales, sigma, odometry_sigma);
   }
   std::filesystem::path data = test::DataDir();
   for (int i = 1; i < argc; ++i) {

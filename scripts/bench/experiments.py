@@ -11,6 +11,62 @@ from .scoring import *  # noqa: F401,F403
 # The experiments
 
 
+def family_renders(r, seqs, family_plan, threads):
+    """Render tasks of the drift family (the x1 render is the sequence's own) and its
+    (sequence, drift, render name) list."""
+    tasks, family = [], []
+    for seq, scales in family_plan:
+        for d in scales:
+            name = seq if d == 1.0 else f"{seq}_df{d:g}"  # the base render has drift 1
+            family.append((seq, d, name))
+            if d != 1.0:
+                tasks += render_tasks(r, {name: (seqs[seq][0], seqs[seq][1] +
+                                                 ["--drift", str(d)])}, threads)
+    return tasks, family
+
+
+def family_runs(r, family, runs):
+    """Run tasks of the drift family: today's options, the loop options before session 8 and the
+    search area before session 19, side by side; their run folders go into `runs`."""
+    tasks = []
+    for _, _, name in family:
+        for variant, cfg in (("new", {}), ("old", OLD_LOOP_DEFAULTS),
+                             ("oldarea", OLD_AREA_DEFAULTS)):
+            task, rd = run_task(r, name, f"family_{variant}", cfg)
+            tasks.append(task)
+            runs[(name, f"family_{variant}")] = rd
+    return tasks
+
+
+def collect_metrics(r, runs):
+    metrics = {}
+    for (seq, variant), d in runs.items():
+        world = "street" if seq.startswith("street") else "aerial"
+        metrics.setdefault(seq, {})[variant] = run_metrics(r.bin, d, r.out / "seq" / seq, world)
+    return metrics
+
+
+def run_family(r):
+    """The drift family alone at its full size (issues #17 / #18): the street worlds along KITTI
+    00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, three option sets each."""
+    full = plan(quick=False)
+    family_plan = drift_family(quick=False)
+    seqs = {seq: full[seq] for seq, _ in family_plan}
+    threads = "1" if r.jobs > 1 else "2"
+    t0 = time.time()
+    renders, family = family_renders(r, seqs, family_plan, threads)
+    r.parallel(render_tasks(r, seqs, threads) + renders)
+    render_s = time.time() - t0
+    runs = {}
+    t1 = time.time()
+    r.parallel(family_runs(r, family, runs))
+    runs_s = time.time() - t1
+    return {"sequences": {n: {"world": w, "render_args": a} for n, (w, a) in seqs.items()},
+            "metrics": collect_metrics(r, runs), "drift_family": family,
+            "timings": {"render_s": render_s, "accuracy_runs_s": runs_s,
+                        "total_s": time.time() - t0}}
+
+
 def run_all(r, quick):
     seqs = plan(quick)
     timings = {}
@@ -40,14 +96,7 @@ def run_all(r, quick):
                                              "--drift", str(d), "--out", out],
                             out / "poses_raw.txt"))
     r.parallel(drift_tasks)
-    family_tasks, family = [], []
-    for seq, scales in drift_family(quick):
-        for d in scales:
-            name = seq if d == 1.0 else f"{seq}_df{d:g}"  # the base render has drift 1
-            family.append((seq, d, name))
-            if d != 1.0:
-                family_tasks += render_tasks(r, {name: (seqs[seq][0], seqs[seq][1] +
-                                                        ["--drift", str(d)])}, threads)
+    family_tasks, family = family_renders(r, seqs, drift_family(quick), threads)
     r.parallel(family_tasks)
     timings["render_s"] = time.time() - t0
 
@@ -87,12 +136,7 @@ def run_all(r, quick):
                                 detector_config(**det), poses=poses)
             tasks.append(task)
             runs[("street07", f"drift{d:g}_{variant}")] = rd
-    for seq, d, name in family:
-        for variant, cfg in (("new", {}), ("old", OLD_LOOP_DEFAULTS),
-                             ("oldarea", OLD_AREA_DEFAULTS)):
-            task, rd = run_task(r, name, f"family_{variant}", cfg)
-            tasks.append(task)
-            runs[(name, f"family_{variant}")] = rd
+    tasks += family_runs(r, family, runs)
     r.parallel(tasks)
     timings["accuracy_runs_s"] = time.time() - t1
 
@@ -135,11 +179,7 @@ def run_all(r, quick):
     timings["micro_s"] = time.time() - t3
     timings["total_s"] = time.time() - t0
 
-    metrics = {}
-    for (seq, variant), d in runs.items():
-        world = "street" if seq.startswith("street") else "aerial"
-        seq_dir = r.out / "seq" / seq
-        metrics.setdefault(seq, {})[variant] = run_metrics(r.bin, d, seq_dir, world)
+    metrics = collect_metrics(r, runs)
     baselines = {v: run_metrics(r.bin, d, r.out / "seq" / base_seq, "street")
                  for v, d in base_runs.items()}
     return {"sequences": {n: {"world": w, "render_args": a} for n, (w, a) in seqs.items()},

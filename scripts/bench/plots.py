@@ -45,11 +45,42 @@ def plot_accuracy(res, path):
         ax.set_title(seq, fontsize=9)
         ax.set_xlabel("segment length (m)")
         ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("KITTI translation error (%)")
-    axes[0][0].legend(fontsize=8)
+    finish_row(fig, axes, "KITTI translation error (%)", path, legend_size=8)
+
+
+def finish_row(fig, axes, ylabel, path, legend_size):
+    """A row of panels: the y label and legend on the first, saved to `path`."""
+    axes[0][0].set_ylabel(ylabel)
+    axes[0][0].legend(fontsize=legend_size)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_family(res, path):
+    """Per drift-family sequence: raw ATE and corrected ATE of each option set against drift."""
+    by_seq = {}
+    for seq, d, name in res.get("drift_family", []):
+        by_seq.setdefault(seq, []).append((d, res["metrics"].get(name, {})))
+    if not by_seq:
+        return
+    fig, axes = plt.subplots(1, len(by_seq), figsize=(3.4 * len(by_seq), 3.3), squeeze=False)
+    styles = (("family_new", "corrected (today)", "o-"),
+              ("family_oldarea", "corrected (paper area only)", "s--"),
+              ("family_old", "corrected (old loop options)", "^:"))
+    for ax, (seq, pts) in zip(axes[0], by_seq.items()):
+        pts.sort(key=lambda p: p[0])
+        xs = [p[0] for p in pts]
+        raw = [p[1].get("family_new", {}).get("raw_ate_m", float("nan")) for p in pts]
+        ax.plot(xs, raw, "k.-", label="raw")
+        for variant, label, style in styles:
+            ax.plot(xs, [p[1].get(variant, {}).get("corrected_ate_m", float("nan"))
+                         for p in pts], style, label=label)
+        ax.set_title(seq, fontsize=9)
+        ax.set_xlabel("drift (x default rates)")
+        ax.set_xticks(xs)
+        ax.grid(alpha=0.3)
+    finish_row(fig, axes, "ATE RMSE (m, Sim(3)-aligned)", path, legend_size=7)
 
 
 def plot_robustness(res, path):

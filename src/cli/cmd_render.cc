@@ -232,8 +232,9 @@ int RunRender(int argc, char** argv) {
   RenderFlags f;
   AddRenderFlags(app, &f);
   Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", f.out_dir,
-                     {"poses_gt.txt", "poses_raw.txt", "poses.txt", "times.txt", "render.json"});
+  CheckOutputDirFlag(
+      "--out", f.out_dir,
+      {"poses_gt.txt", "poses_raw.txt", "raw_scale.txt", "poses.txt", "times.txt", "render.json"});
   ApplyRenderFlags(&f);
 
   const Scene scene = BuildScene(f, MakeTextures(f));
@@ -251,9 +252,11 @@ int RunRender(int argc, char** argv) {
                     TrajectoryFormat::kKitti);
     WriteTrajectory(std::filesystem::path(f.out_dir) / "poses_raw.txt", drift.raw,
                     TrajectoryFormat::kKitti);
+    WriteRawScale(std::filesystem::path(f.out_dir) / "raw_scale.txt", drift.scale);
     WriteRenderJson(f, gt.size());
-    std::cout << fmt::format("wrote poses_gt.txt and poses_raw.txt ({} poses) to {}\n", gt.size(),
-                             f.out_dir);
+    std::cout << fmt::format(
+        "wrote poses_gt.txt, poses_raw.txt and raw_scale.txt ({} poses) to {}\n", gt.size(),
+        f.out_dir);
     return 0;
   }
   const bool tty = isatty(fileno(stderr));

@@ -132,6 +132,12 @@ int64_t ForEachFrameInParallel(int64_t total, int num_threads,
 
 }  // namespace
 
+void WriteRawScale(const std::filesystem::path& path, const std::vector<double>& scale) {
+  WriteFileAtomically(path, [&](std::ostream& out) {
+    for (const double s : scale) out << fmt::format("{:.9g}\n", s);
+  });
+}
+
 SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
                                   const CameraIntrinsics& camera, const Trajectory& gt,
                                   const SequenceOptions& options,
@@ -170,6 +176,7 @@ SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
   WriteTrajectory(out_dir / "poses_gt.txt", gt, TrajectoryFormat::kKitti);
   WriteTrajectory(out_dir / "poses.txt", gt, TrajectoryFormat::kKitti);
   WriteTrajectory(out_dir / "poses_raw.txt", raw_traj, TrajectoryFormat::kKitti);
+  WriteRawScale(out_dir / "raw_scale.txt", scale);
   WriteFileAtomically(out_dir / "times.txt", [&](std::ostream& out) {
     for (const auto& p : gt.poses) out << fmt::format("{:.6e}\n", p.timestamp);
   });

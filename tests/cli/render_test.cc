@@ -1,4 +1,5 @@
 // End-to-end tests of `sparseloop render` and `sparseloop report`.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -26,6 +27,13 @@ fs::path OutDir(const std::string& name) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
+}
+
+std::vector<std::string> ReadLines(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
 }
 
 TEST(RenderCli, AerialSequenceIsAKittiFolder) {
@@ -74,6 +82,7 @@ TEST(RenderCli, PosesOnlyMatchesFullRenderAndDriftScales) {
         .norm();
   };
   std::vector<double> errors;
+  std::vector<std::string> drift1_scale;
   for (const char* drift : {"1", "0", "3"}) {
     const auto out = OutDir(std::string("drift") + drift);
     const CliResult r = RunCli({"render", "--world", "aerial", "--frames", "40", "--seed", "5",
@@ -81,14 +90,50 @@ TEST(RenderCli, PosesOnlyMatchesFullRenderAndDriftScales) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_FALSE(fs::exists(out / "image_0"));
     errors.push_back(end_error(out));
+    if (std::string(drift) == "1") drift1_scale = ReadLines(out / "raw_scale.txt");
   }
   EXPECT_DOUBLE_EQ(errors[0], end_error(full));  // same drift as the full render
-  EXPECT_LT(errors[1], 1e-6);                    // --drift 0: raw == GT
-  EXPECT_GT(errors[2], errors[0]);               // more drift, farther from GT
+  EXPECT_EQ(drift1_scale, ReadLines(full / "raw_scale.txt"));
+  EXPECT_LT(errors[1], 1e-6);       // --drift 0: raw == GT
+  EXPECT_GT(errors[2], errors[0]);  // more drift, farther from GT
   EXPECT_EQ(RunCli({"render", "--world", "aerial", "--frames", "4", "--poses-only", "--drift", "-1",
                     "--out", (TempDir() / "x").string()})
                 .exit_code,
             2);
+}
+
+// raw_scale.txt is the raw trajectory's scale at each frame: each raw step is the GT step times
+// the scale (up to the simulated translation noise), and the file explains the raw step lengths
+// far better than no scale at all (the oracle of posegraph_accuracy takes its loops' scale here).
+TEST(RenderCli, RawScaleIsTheScaleOfTheRawSteps) {
+  const auto out = OutDir("raw_scale");
+  const CliResult r = RunCli({"render", "--world", "aerial", "--frames", "300", "--seed", "3",
+                              "--poses-only", "--drift", "8", "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Trajectory gt = ReadTrajectory(out / "poses_gt.txt");
+  const Trajectory raw = ReadTrajectory(out / "poses_raw.txt");
+  std::vector<double> scale;
+  for (const std::string& line : ReadLines(out / "raw_scale.txt")) scale.push_back(std::stod(line));
+  ASSERT_EQ(scale.size(), gt.size());
+  std::vector<double> with_scale, without;
+  for (size_t i = 0; i + 1 < gt.size(); ++i) {
+    const double g =
+        (gt.poses[i + 1].world_from_cam.translation - gt.poses[i].world_from_cam.translation)
+            .norm();
+    if (g < 1e-6) continue;
+    const double e =
+        (raw.poses[i + 1].world_from_cam.translation - raw.poses[i].world_from_cam.translation)
+            .norm();
+    with_scale.push_back(std::abs(e / (g * scale[i + 1]) - 1.0));
+    without.push_back(std::abs(e / g - 1.0));
+  }
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  ASSERT_GT(with_scale.size(), 200u);
+  EXPECT_LT(median(with_scale), 0.12);  // 8 % translation noise per axis
+  EXPECT_GT(median(without), 2.0 * median(with_scale));
 }
 
 // A --start / --step slice is recorded in the folder (render.json), not only on stderr.

@@ -78,9 +78,13 @@ struct HarnessLoops {
   std::vector<bool> is_false;
 };
 
+// `scales`, when given (one per keyframe, raw units per GT metre: a render's raw_scale.txt), are
+// the raw trajectory's exact local scales; otherwise LocalScales estimates them.
 inline HarnessLoops MakeHarnessLoops(const std::vector<Sim3d>& raw, const std::vector<Sim3d>& gt,
-                                     const LoopHarnessOptions& o, std::mt19937_64& rng) {
-  const std::vector<double> lambda = LocalScales(raw, gt, o.scale_window, o.scale_min_extent);
+                                     const LoopHarnessOptions& o, std::mt19937_64& rng,
+                                     const std::vector<double>* scales = nullptr) {
+  const std::vector<double> lambda =
+      scales ? *scales : LocalScales(raw, gt, o.scale_window, o.scale_min_extent);
   std::normal_distribution<double> n01(0.0, 1.0);
   const int64_t n = static_cast<int64_t>(raw.size());
   HarnessLoops out;

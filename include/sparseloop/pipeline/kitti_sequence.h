@@ -54,6 +54,10 @@ SequenceResult WriteKittiSequence(const std::filesystem::path& out_dir,
                                   const std::optional<Trajectory>& raw = std::nullopt,
                                   const std::function<void(int64_t, int64_t)>& progress = {});
 
+// Writes raw_scale.txt: one line per frame, the raw trajectory's scale there (raw units per GT
+// metre; the simulated drift's own scale, or LocalScale's estimate for a given raw trajectory).
+void WriteRawScale(const std::filesystem::path& path, const std::vector<double>& scale);
+
 // Writes calib.txt with P0..P3 for `camera` (P1/P3 with baseline 0.54 m).
 void WriteKittiCalib(const std::filesystem::path& path, const CameraIntrinsics& camera);
 
