@@ -22,12 +22,16 @@ namespace fs = std::filesystem;
 
 int RunBench(int argc, char** argv) {
   CLI::App app{"Run the benchmark suite and regenerate docs/BENCHMARKS.md (see scripts/benchmark)"};
-  bool quick = false, reuse = false;
+  bool quick = false, family = false, reuse = false;
   std::string out, python;
   int jobs = 2;
   app.add_flag("--quick", quick, "the subset that runs in under 10 minutes on 2 cores");
+  app.add_flag("--family", family,
+               "only the drift family at full size (docs/BENCHMARKS_DRIFT.md, ~30 minutes)")
+      ->excludes("--quick");
   app.add_flag("--reuse", reuse, "keep experiments whose outputs already exist");
-  app.add_option("--out", out, "output folder (default out/bench-quick|full in the source tree)");
+  app.add_option("--out", out,
+                 "output folder (default out/bench-quick|family|full in the source tree)");
   app.add_option("--jobs", jobs, "experiments run in parallel")->capture_default_str();
   app.add_option("--python", python,
                  "python with matplotlib and numpy (default: as `report` finds it: "
@@ -51,6 +55,7 @@ int RunBench(int argc, char** argv) {
   std::vector<std::string> args = {python,         script.string(), "--build",
                                    build.string(), "--jobs",        std::to_string(jobs)};
   if (quick) args.emplace_back("--quick");
+  if (family) args.emplace_back("--family");
   if (reuse) args.emplace_back("--reuse");
   if (!out.empty()) args.insert(args.end(), {"--out", out});
   std::vector<char*> c_args;

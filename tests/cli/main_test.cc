@@ -34,6 +34,15 @@ TEST(Cli, EverySubcommandHelpExits0WithOptions) {
   }
 }
 
+// `bench --quick --family` is a usage error (exit 2, both flags named), before any python runs.
+TEST(Cli, BenchQuickAndFamilyExcludeEachOther) {
+  const CliResult r = RunCli({"bench", "--quick", "--family"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--family"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--quick"), std::string::npos) << r.err;
+  EXPECT_NE(RunCli({"bench", "--help"}).out.find("--family"), std::string::npos);
+}
+
 TEST(Cli, UnknownOptionExits2AndPointsToHelp) {
   const CliResult r = RunCli({"eval", "--no-such-flag"});
   EXPECT_EQ(r.exit_code, 2);
