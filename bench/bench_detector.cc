@@ -326,6 +326,7 @@ void BM_AppearanceFallback(benchmark::State& state) {
   ro.coarse_features = variant == 0 ? static_cast<size_t>(defaults.fallback_coarse_features) : 0;
   ro.coarse_keep = 10 * ro.keep;
   ro.fine_features = static_cast<size_t>(defaults.fallback_fine_features);
+  ro.coarse_probe = static_cast<size_t>(defaults.fallback_coarse_probe);
   ro.max_distance = mo.max_distance;
   int64_t best_id = -1;
   size_t matched_in_full = 0;

@@ -118,11 +118,13 @@ void LoopDetector::Options::Check() const {
                planar_alternative_tolerance);
   SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
   SL_CHECK_MSG(fallback_candidates >= 0 && fallback_rank_features >= 0 &&
-                   fallback_coarse_features >= 0 && fallback_fine_features >= 0,
-               "fallback_candidates, fallback_rank_features, fallback_coarse_features and "
-               "fallback_fine_features must be >= 0, got {}, {}, {} and {}",
+                   fallback_coarse_features >= 0 && fallback_coarse_probe >= 0 &&
+                   fallback_fine_features >= 0,
+               "fallback_candidates, fallback_rank_features, fallback_coarse_features, "
+               "fallback_coarse_probe and fallback_fine_features must be >= 0, got {}, {}, {}, {} "
+               "and {}",
                fallback_candidates, fallback_rank_features, fallback_coarse_features,
-               fallback_fine_features);
+               fallback_coarse_probe, fallback_fine_features);
   SL_CHECK_MSG(pose_jump_factor >= 0 && pose_jump_max_deg >= 0,
                "pose_jump_factor and pose_jump_max_deg must be >= 0 (0: off), got {} and {}",
                pose_jump_factor, pose_jump_max_deg);
@@ -368,6 +370,7 @@ std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& que
   ro.coarse_features = static_cast<size_t>(options_.fallback_coarse_features);
   ro.coarse_keep = 10 * ro.keep;
   ro.fine_features = static_cast<size_t>(options_.fallback_fine_features);
+  ro.coarse_probe = static_cast<size_t>(options_.fallback_coarse_probe);
   ro.max_distance = options_.match.max_distance;
   const std::vector<size_t> best = RankByProbe(
       indices.size(), [&](size_t i) { return records_[indices[i]].descriptors(); }, probe, ro);

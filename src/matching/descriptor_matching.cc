@@ -136,7 +136,11 @@ std::vector<size_t> RankByProbe(size_t n,
   for (size_t i = 0; i < n; ++i) candidates[i] = i;
   if (options.keep == 0 || n <= options.keep) return candidates;
   if (options.coarse_features > 0 && n > std::max(options.coarse_keep, options.keep)) {
-    candidates = BestByProbe(candidates, stored, probe, options.coarse_features,
+    const std::span<const Descriptor> coarse_probe =
+        options.coarse_probe > 0 && probe.size() > options.coarse_probe
+            ? probe.first(options.coarse_probe)
+            : probe;
+    candidates = BestByProbe(candidates, stored, coarse_probe, options.coarse_features,
                              std::max(options.coarse_keep, options.keep), options.max_distance);
   }
   return BestByProbe(candidates, stored, probe, options.fine_features, options.keep,

@@ -277,6 +277,9 @@ void AddDetectorPolicyKeys(KeyList& k) {
   k.Add(d + "fallback_coarse_features", SL_FIELD(detector.fallback_coarse_features), "features",
         "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
         "on this many stored descriptors each (0: off)");
+  k.Add(d + "fallback_coarse_probe", SL_FIELD(detector.fallback_coarse_probe), "features",
+        "appearance fallback pre-ranking's coarse stage: the query's first this many probe "
+        "descriptors (0: all)");
   k.Add(d + "fallback_fine_features", SL_FIELD(detector.fallback_fine_features), "features",
         "appearance fallback pre-ranking: stored descriptors per keyframe and query "
         "descriptors in the probe, the first this many (0: all K)");

@@ -144,6 +144,8 @@ TEST(Matching, RankByProbeIsTheBruteForceRankingAndTheCoarseStageKeepsRevisits) 
       records[planted][static_cast<size_t>(j)] =
           FlipBits(probe[static_cast<size_t>(2 * j)], 20, rng);
   }
+  // Record 500 holds only probe descriptor 10 (beyond a 4-descriptor coarse probe).
+  records[500][0] = FlipBits(probe[10], 20, rng);
   const auto stored = [&](size_t i) { return std::span<const Descriptor>(records[i]); };
   std::vector<std::pair<ProbeScore, size_t>> all;
   for (size_t i = 0; i < records.size(); ++i)
@@ -167,6 +169,15 @@ TEST(Matching, RankByProbeIsTheBruteForceRankingAndTheCoarseStageKeepsRevisits) 
   const std::vector<size_t> two = RankByProbe(records.size(), stored, probe, o);
   ASSERT_EQ(two.size(), 20u);
   EXPECT_EQ(first3(two), (std::vector<size_t>{123, 777, 1999}));
+  EXPECT_EQ(two[3], 500u);
+  // coarse_probe: the coarse stage compares with the probe's first 4 only. The planted revisits
+  // hold probe 0 and 2 in their first 4 and stay first; record 500 (probe 10) no longer passes
+  // the coarse stage (it ties with every random record there, and the lower indices win).
+  o.coarse_probe = 4;
+  const std::vector<size_t> capped = RankByProbe(records.size(), stored, probe, o);
+  EXPECT_EQ(first3(capped), (std::vector<size_t>{123, 777, 1999}));
+  EXPECT_EQ(std::find(capped.begin(), capped.end(), 500u), capped.end());
+  o.coarse_probe = 0;
   o.coarse_keep = records.size();
   EXPECT_EQ(RankByProbe(records.size(), stored, probe, o), one);
   // fine_features: the last stage scores the first 8 of 15; the planted revisits hold the probe

@@ -351,6 +351,12 @@ class LoopDetector {
     // 10 x fallback_candidates best go on to the full score (a large map: issue #17's <= 2 ms at
     // 10,000 stored keyframes). 0: score every eligible keyframe in full.
     int fallback_coarse_features = 4;
+    // The coarse stage compares each keyframe's first fallback_coarse_features with the query's
+    // first fallback_coarse_probe probe descriptors (its best ranked; 0: the whole probe). 8
+    // (session 22): at K = 300 over 10,000 keyframes the coarse stage with 32 was 1.2 of the
+    // fallback's 3.4 ms (bench_detector BM_AppearanceFallback); the same loops on the street and
+    // aerial renders at K = 300 and with the K = 15 preset.
+    int fallback_coarse_probe = 8;
     // The ranking uses the first fallback_fine_features stored descriptors of each keyframe and
     // of the query's probe (their best ranked; 0: all K). At K = 15 it is all of them; at K = 300
     // scoring all 300 against the query's 300 for 200 keyframes took 16 ms per keyframe
