@@ -2,6 +2,7 @@
 //
 //   posegraph_accuracy [--data DIR]
 //   posegraph_accuracy --oracle RAW GT [--revisit M] [--min-gap KEYFRAMES] [--scales FILE]
+//                      [--loop-sigma F] [--odometry-sigma F]
 //
 // DIR is the shared real-data folder (default: $SPARSELOOP_DATA, else the configured
 // SPARSELOOP_DATA_DIR, i.e. ../shared/data next to the repository). Exit code 2 with a message on
@@ -28,6 +29,7 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -186,18 +188,18 @@ int Oracle(const std::filesystem::path& raw_path, const std::filesystem::path& g
   odometry.translation_fraction *= odometry_factor;
   odometry.rotation_sigma_rad *= odometry_factor;
   odometry.scale_sigma *= odometry_factor;
-  auto solve = [&](OutlierRejection rejection, PoseGraphSummary* summary) {
+  // (evaluation, loops rejected)
+  auto solve = [&](OutlierRejection rejection) {
     PoseGraph graph = BuildOdometryGraph(ids, raw_kf, VertexType::kSim3, odometry);
     for (const auto& l : loops.loops) graph.AddLoop(l);
     PoseGraphOptions options;
     options.rejection = rejection;
-    *summary = graph.Optimize(options);
-    return evaluate(graph);
+    const PoseGraphSummary summary = graph.Optimize(options);
+    return std::make_pair(evaluate(graph), summary.rejected_loops.size());
   };
-  PoseGraphSummary all_summary, pcm_summary;
   const TrajectoryEvaluation e_raw = EvaluateTrajectory(gt, raw);
-  const TrajectoryEvaluation e_cor = solve(OutlierRejection::kNone, &all_summary);
-  const TrajectoryEvaluation e_pcm = solve(OutlierRejection::kPcm, &pcm_summary);
+  const TrajectoryEvaluation e_cor = solve(OutlierRejection::kNone).first;
+  const auto [e_pcm, pcm_rejected] = solve(OutlierRejection::kPcm);
   std::cout << fmt::format(
       "{{\"keyframes\": {}, \"oracle_loops\": {}, \"exact_scales\": {}, \"raw_ate_m\": {}, "
       "\"corrected_ate_m\": {}, \"raw_t_err_pct\": {}, \"corrected_t_err_pct\": {}, "
@@ -205,7 +207,7 @@ int Oracle(const std::filesystem::path& raw_path, const std::filesystem::path& g
       "{}}}\n",
       raw_kf.size(), loops.loops.size(), scales ? "true" : "false", Json(e_raw.ate.rmse),
       Json(e_cor.ate.rmse), Json(TErr(e_raw)), Json(TErr(e_cor)), Json(e_pcm.ate.rmse),
-      Json(TErr(e_pcm)), pcm_summary.rejected_loops.size());
+      Json(TErr(e_pcm)), pcm_rejected);
   return 0;
 }
 
