@@ -432,9 +432,11 @@ void AddOptimizerKeys(KeyList& k) {
   k.Add(p + "log_progress", SL_FIELD(optimizer.log_progress), "",
         "log every iteration (through the logger, never stdout)");
   k.Add(p + "loop_weight_rounds", SL_FIELD(optimizer.loop_weight_rounds), "solves",
-        "re-solves with heavier kept loops while one is inconsistent (>= 0; 0: off)");
+        "re-solves with heavier kept loops while the median one is inconsistent (>= 0; 0: off)");
   k.Add(p + "max_loop_weight_scale", SL_FIELD(optimizer.max_loop_weight_scale), "",
         "largest factor on the kept loops' information (>= 1)");
+  k.Add(p + "loop_weight_quantile", SL_FIELD(optimizer.loop_weight_quantile), "",
+        "which kept loop's chi2 drives the weight rounds: 0.5 the median, 1 the worst (0, 1]");
 }
 
 void AddGraphKeys(KeyList& k) {

@@ -225,6 +225,8 @@ void PoseGraphOptions::Check() const {
                loop_weight_rounds);
   SL_CHECK_MSG(max_loop_weight_scale >= 1, "max_loop_weight_scale must be >= 1, got {}",
                max_loop_weight_scale);
+  SL_CHECK_MSG(loop_weight_quantile > 0 && loop_weight_quantile <= 1,
+               "loop_weight_quantile must be in (0, 1], got {}", loop_weight_quantile);
   pcm.Check();
 }
 
@@ -442,6 +444,23 @@ double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bo
   return cost;
 }
 
+namespace {
+
+// The `quantile` of chi2 / threshold over the checked loops (nearest rank; 1 = the worst); 0 when
+// no loop was checked.
+double LoopCheckQuantile(const std::vector<LoopResidualCheck>& checks, double quantile) {
+  std::vector<double> ratios;
+  for (const LoopResidualCheck& c : checks)
+    if (c.threshold > 0) ratios.push_back(c.chi2 / c.threshold);
+  if (ratios.empty()) return 0.0;
+  const auto rank = static_cast<size_t>(std::ceil(quantile * static_cast<double>(ratios.size())));
+  const size_t k = std::clamp<size_t>(rank, 1, ratios.size()) - 1;
+  std::nth_element(ratios.begin(), ratios.begin() + static_cast<std::ptrdiff_t>(k), ratios.end());
+  return ratios[k];
+}
+
+}  // namespace
+
 PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
                                      const std::atomic<bool>* interrupt) {
   options.Check();
@@ -473,11 +492,9 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
     if (summary.status == PoseGraphStatus::kFailed ||
         summary.status == PoseGraphStatus::kInterrupted)
       break;
-    double worst = 0.0;
-    for (const LoopResidualCheck& c : summary.loop_checks)
-      if (!c.consistent && c.threshold > 0) worst = std::max(worst, c.chi2 / c.threshold);
-    if (worst <= 1.0 || loop_scale >= options.max_loop_weight_scale) break;
-    loop_scale = std::min(options.max_loop_weight_scale, loop_scale * std::max(2.0, worst));
+    const double excess = LoopCheckQuantile(summary.loop_checks, options.loop_weight_quantile);
+    if (excess <= 1.0 || loop_scale >= options.max_loop_weight_scale) break;
+    loop_scale = std::min(options.max_loop_weight_scale, loop_scale * std::max(2.0, excess));
     PoseGraphSummary again;
     again.num_vertices = summary.num_vertices;
     again.num_edges = summary.num_edges;
