@@ -8,6 +8,8 @@
 //   rtabmap[ranking][K]: detections, true positives, precision, recall, recall@100%P
 //     (rtabmap_corridor_loop, global search, no poses, guessed intrinsics, default options but K,
 //     ranking popcount / response / grid, K in {8,10,12,15,18,32,50,64,100,300});
+//   rtabmap.oracle[symmetric_K | asymmetric_K]: every pair verified, per query the best true and
+//     false pair's inliers, the best recall@100%P of any inlier threshold (RtabmapOracle below);
 //   castle: the default detector over views 0001..0029 with GT poses: loops found, the 29 -> x
 //     loop's relative rotation error and translation direction error vs GT, degrees;
 //   castle_pairs[ranking][K]: descriptor matches and essential inliers (min_inliers 5) of the
@@ -150,6 +152,9 @@ json EurocPairsByK(const fs::path& root) {
   return out;
 }
 
+json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<int, int>>& gt,
+                   const std::set<int>& queries_with_gt);
+
 // ---- rtabmap_corridor_loop: no poses, guessed intrinsics, GT loop pairs (1-based in the file).
 json Rtabmap(const fs::path& root, bool quick) {
   std::vector<cv::Mat> images;
@@ -177,6 +182,7 @@ json Rtabmap(const fs::path& root, bool quick) {
       quick ? std::vector<int>{15, 50} : std::vector<int>{8, 10, 12, 15, 18, 32, 50, 64, 100, 300};
   json out;
   out["queries_with_gt"] = static_cast<int>(queries_with_gt.size());
+  out["oracle"] = RtabmapOracle(images, gt, queries_with_gt);
   for (auto ranking :
        {FeatureRanking::kPopcount, FeatureRanking::kResponse, FeatureRanking::kGridResponse}) {
     for (int k : ks) {
@@ -222,6 +228,93 @@ json Rtabmap(const fs::path& root, bool quick) {
           {"precision", detections ? double(tp) / detections : 1.0},
           {"recall", double(tp) / queries_with_gt.size()},
           {"recall_at_full_precision", recall_full}};
+    }
+  }
+  return out;
+}
+
+// ---- rtabmap oracle: what single-pair verification can reach at a given K, whatever the
+// search. Every pair at least `exclude_recent` (30) apart is matched and verified (5-inlier floor
+// so that counts below the detector's floors are seen); per query the best GT-true and the best
+// false pair. A detector that verifies every pair and accepts the top pair at >= t inliers
+// recalls the GT queries whose best true pair has >= t inliers and beats every false one; its
+// precision is 1 only while no query's top pair is a false one with >= t. `ceiling` is the best
+// recall@100%P over t in [5, 60]; `verifiable_at_8` the GT queries whose best true pair reaches
+// the small-K floor of 8 (docs/DETECTOR.md "Small K").
+json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<int, int>>& gt,
+                   const std::set<int>& queries_with_gt) {
+  json out;
+  const int gap = SearchAreaOptions{}.exclude_recent;
+  for (const int k : {15, 20, 300}) {
+    for (const bool asymmetric : {false, true}) {
+      if (k == 300 && asymmetric) continue;  // the query extraction is K already
+      LoopDetector::Options options;
+      FeatureOptions stored_options = options.features;
+      stored_options.max_features = k;
+      FeatureOptions query_options = stored_options;
+      if (asymmetric) query_options.max_features = options.query_max_features;
+      std::vector<KeyframeRecord> stored(images.size()), query(images.size());
+      for (size_t i = 0; i < images.size(); ++i) {
+        CameraIntrinsics intr;  // fx = fy = 0.9 width, centre (docs/DETECTOR.md)
+        intr.fx = intr.fy = 0.9 * images[i].cols;
+        intr.cx = 0.5 * images[i].cols;
+        intr.cy = 0.5 * images[i].rows;
+        intr.width = images[i].cols;
+        intr.height = images[i].rows;
+        FeatureInput in;
+        in.image = &images[i];
+        in.intrinsics = &intr;
+        ExtractInformativeFeatures(in, stored_options, &stored[i]);
+        ExtractInformativeFeatures(in, query_options, &query[i]);
+      }
+      VerifyOptions verify = options.verify;
+      verify.min_inliers = 5;
+      const int n = static_cast<int>(images.size());
+      std::vector<int> best_true(images.size(), 0), best_false(images.size(), 0);
+      for (int q = 0; q < n; ++q) {
+        for (int m = 0; m + gap < q; ++m) {
+          const std::vector<DescriptorMatch> matches =
+              asymmetric
+                  ? MatchStoredIntoQuery(query[q].descriptors, stored[m].descriptors, options.match)
+                  : MatchDescriptors(query[q].descriptors, stored[m].descriptors, options.match);
+          if (matches.size() < 5) continue;
+          const VerificationResult v = VerifyPair(query[q], stored[m], matches, verify);
+          const int inliers = v.success ? v.inliers : 0;
+          int& best = gt.count({q, m}) > 0 ? best_true[q] : best_false[q];
+          best = std::max(best, inliers);
+        }
+      }
+      double ceiling = 0.0;
+      int ceiling_t = 0;
+      json by_threshold = json::array();
+      for (int t = 5; t <= 60; ++t) {
+        int tp = 0, fp = 0;
+        for (int q = 0; q < n; ++q) {
+          const bool true_on_top = best_true[q] > best_false[q];
+          if (true_on_top && best_true[q] >= t && queries_with_gt.count(q)) ++tp;
+          if (!true_on_top && best_false[q] >= t) ++fp;
+        }
+        const double recall = double(tp) / double(queries_with_gt.size());
+        if (t <= 16) by_threshold.push_back({{"t", t}, {"recall", recall}, {"false", fp}});
+        if (fp == 0 && recall > ceiling) {
+          ceiling = recall;
+          ceiling_t = t;
+        }
+      }
+      int verifiable = 0;
+      json true_counts = json::array(), false_counts = json::array();
+      for (int q : queries_with_gt) {
+        verifiable += best_true[static_cast<size_t>(q)] >= 8;
+        true_counts.push_back(best_true[static_cast<size_t>(q)]);
+      }
+      for (int q = 0; q < n; ++q) false_counts.push_back(best_false[static_cast<size_t>(q)]);
+      out[(asymmetric ? "asymmetric_" : "symmetric_") + std::to_string(k)] = {
+          {"ceiling", ceiling},
+          {"ceiling_threshold", ceiling_t},
+          {"by_threshold", by_threshold},
+          {"verifiable_at_8", double(verifiable) / double(queries_with_gt.size())},
+          {"best_true_inliers", true_counts},
+          {"best_false_inliers", false_counts}};
     }
   }
   return out;

@@ -526,7 +526,7 @@ def real_sets_md(da):
                  table(["ranking", "K"] + pairs, rows) + "\n")
     rt = da.get("rtabmap", {})
     if rt:
-        rankings = [k for k, v in rt.items() if isinstance(v, dict)]
+        rankings = [k for k, v in rt.items() if isinstance(v, dict) and k != "oracle"]
         ks = sorted({k for r in rankings for k in rt[r]}, key=int)
         rows = [[r] + [rt[r][k]["recall_at_full_precision"] if k in rt[r] else "" for k in ks]
                 for r in rankings]
@@ -535,6 +535,20 @@ def real_sets_md(da):
                  f"{rt.get('queries_with_gt', '?')} query images with a GT loop): recall at 100 % "
                  f"precision by ranking and K; lowest precision in the table: **{fmt(prec, 3)}**"
                  "\n\n" + table(["ranking"] + [f"K={k}" for k in ks], rows) + "\n")
+    oracle = rt.get("oracle", {})
+    if oracle:
+        rows = []
+        for name, o in oracle.items():
+            at = {b["t"]: b for b in o.get("by_threshold", [])}
+            at8 = at.get(8, {})
+            rows.append([name.replace("_", " K = "), f"{fmt(o['ceiling'], 3)} (t = {o['ceiling_threshold']})",
+                         f"{fmt(at8.get('recall', float('nan')), 3)}, {at8.get('false', '?')} false",
+                         fmt(o["verifiable_at_8"], 3)])
+        text += ("\nrtabmap oracle (every pair >= 30 keyframes apart verified, default ranking; "
+                 "docs/DETECTOR.md): the best recall at 100 % precision of any inlier threshold t "
+                 "for a detector that accepts each query's top pair, the same at the small-K "
+                 "floor t = 8, and the GT queries whose best true pair reaches 8 inliers\n\n"
+                 + table(["matching, K", "ceiling", "at t = 8", "verifiable at 8"], rows) + "\n")
     return text
 
 
