@@ -25,13 +25,16 @@ def family_renders(r, seqs, family_plan, threads):
     return tasks, family
 
 
-def family_runs(r, family, runs):
+def family_runs(r, family, runs, sparse=False):
     """Run tasks of the drift family: today's options, the loop options before session 8 and the
-    search area before session 19, side by side; their run folders go into `runs`."""
+    search area before session 19, side by side (and with `sparse` the K = 15 preset,
+    bench/configs/sparse_k15.json); their run folders go into `runs`."""
     tasks = []
+    variants = [("new", {}), ("old", OLD_LOOP_DEFAULTS), ("oldarea", OLD_AREA_DEFAULTS)]
+    if sparse:
+        variants.append(("sparse", {"detector": sparse_variants()["sparse_preset"][1]}))
     for _, _, name in family:
-        for variant, cfg in (("new", {}), ("old", OLD_LOOP_DEFAULTS),
-                             ("oldarea", OLD_AREA_DEFAULTS)):
+        for variant, cfg in variants:
             task, rd = run_task(r, name, f"family_{variant}", cfg)
             tasks.append(task)
             runs[(name, f"family_{variant}")] = rd
@@ -48,7 +51,7 @@ def collect_metrics(r, runs):
 
 def run_family(r):
     """The drift family alone at its full size (issues #17 / #18): the street worlds along KITTI
-    00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, three option sets each."""
+    00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, four option sets each."""
     full = plan(quick=False)
     family_plan = drift_family(quick=False)
     seqs = {seq: full[seq] for seq, _ in family_plan}
@@ -59,7 +62,7 @@ def run_family(r):
     render_s = time.time() - t0
     runs = {}
     t1 = time.time()
-    r.parallel(family_runs(r, family, runs))
+    r.parallel(family_runs(r, family, runs, sparse=True))
     runs_s = time.time() - t1
     return {"sequences": {n: {"world": w, "render_args": a} for n, (w, a) in seqs.items()},
             "metrics": collect_metrics(r, runs), "drift_family": family,

@@ -67,7 +67,8 @@ def plot_family(res, path):
     fig, axes = plt.subplots(1, len(by_seq), figsize=(3.4 * len(by_seq), 3.3), squeeze=False)
     styles = (("family_new", "corrected (today)", "o-"),
               ("family_oldarea", "corrected (paper area only)", "s--"),
-              ("family_old", "corrected (old loop options)", "^:"))
+              ("family_old", "corrected (old loop options)", "^:"),
+              ("family_sparse", "corrected (K = 15 preset)", "d-."))
     for ax, (seq, pts) in zip(axes[0], by_seq.items()):
         pts.sort(key=lambda p: p[0])
         xs = [p[0] for p in pts]
