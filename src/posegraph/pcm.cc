@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 
@@ -316,14 +318,48 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
                           (raw_poses_[mb].Inverse() * raw_poses_[ma]);
       Vector7d e = cycle.Log();
       if (!sim3) e[6] = 0.0;
+      const Eigen::Matrix<double, 7, 1> cov_b = LoopMarginalVariances(lb);
       const Eigen::Matrix<double, 7, 1> cov =
-          cov_a + LoopMarginalVariances(lb) + chains.Covariance(qa, qb) + chains.Covariance(ma, mb);
+          cov_a + cov_b + chains.Covariance(qa, qb) + chains.Covariance(ma, mb);
+      // A loop that leaves its relative scale free (PnP against the match's points: the query
+      // side has no depth) fixes it at 1 in its pose; under scale drift that is wrong by the
+      // scale change between match and query, and the cycle's translation inherits the error
+      // times a lever arm: for loop b the position of m_a seen from q_b (the match chain's
+      // length), for loop a that of m_a seen from q_a. The translation test is made in the
+      // whitened space with those directions projected out (one dof each), so a free scale is
+      // not read as an inconsistent translation.
+      // Directions (and variances) along which the cycle's translation moves with a free scale.
+      std::vector<std::pair<Eigen::Vector3d, double>> free;
+      if (options.free_scale_prior && sim3 && std::isinf(cov_a[6])) {
+        // exp(sigma_a) scales q_a_from_m_a through the cycle: m_a seen from q_a.
+        const Sim3d rest = (raw_poses_[qa].Inverse() * raw_poses_[qb]) *
+                           lb.match_from_query.Inverse() *
+                           (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+        free.emplace_back(
+            la.match_from_query.scale * (la.match_from_query.rotation * rest.translation),
+            chains.Covariance(ma, qa)[6]);
+      }
+      if (options.free_scale_prior && sim3 && std::isinf(cov_b[6])) {
+        // exp(-sigma_b) scales q_b_from_m_a (m_a seen from q_b: the match chain).
+        const Sim3d left = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]);
+        const Sim3d right =
+            lb.match_from_query.Inverse() * (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+        free.emplace_back(left.scale * (left.rotation * right.translation),
+                          chains.Covariance(mb, qb)[6]);
+      }
+      const bool full_translation = !free.empty() && cov.head<3>().allFinite();
       double chi2 = 0.0;
       int dof = 0;
-      for (int d = 0; d < 7; ++d) {
+      for (int d = full_translation ? 3 : 0; d < 7; ++d) {
         if (!std::isfinite(cov[d]) || (d == 6 && !sim3)) continue;
         chi2 += e[d] * e[d] / std::max(cov[d], 1e-18);
         ++dof;
+      }
+      if (full_translation) {
+        Eigen::Matrix3d c = cov.head<3>().cwiseMax(1e-18).asDiagonal();
+        for (const auto& [u, variance] : free) c += variance * u * u.transpose();
+        chi2 += e.head<3>().dot(c.ldlt().solve(e.head<3>()));
+        dof += 3;
       }
       const bool consistent = dof == 0 || chi2 <= thresholds[dof];
       (*adj)[a][b] = (*adj)[b][a] = consistent;
@@ -350,7 +386,7 @@ bool SameConsistencyTest(const PcmOptions& a, const PcmOptions& b) {
   return a.confidence == b.confidence &&
          a.step_translation_fraction == b.step_translation_fraction &&
          a.step_rotation_sigma_rad == b.step_rotation_sigma_rad &&
-         a.step_scale_sigma == b.step_scale_sigma;
+         a.step_scale_sigma == b.step_scale_sigma && a.free_scale_prior == b.free_scale_prior;
 }
 
 }  // namespace

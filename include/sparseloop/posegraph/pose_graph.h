@@ -99,6 +99,13 @@ struct PcmOptions {
   double step_rotation_sigma_rad = 0.01;    // rad per step (also the lever-arm drift rate)
   double step_scale_sigma = 0.01;           // log-scale per step (also lever arm); Sim(3) only
   size_t max_exact_clique = 64;             // loops; above this a greedy clique is used
+  // A loop that leaves its relative scale free (se3_metric: PnP against the match's points)
+  // carries scale 1 in its pose, wrong by the scale drift between match and query; the cycle of
+  // two loops then misses by that error times the match chain's length. On: the cycle's
+  // translation is tested with the free scale's prior (the chain's scale variance between the
+  // loop's match and query) along that lever arm, instead of at scale 1. Off by default until the
+  // drift family is re-run with it (docs/POSEGRAPH.md, "Loops with a free scale in PCM").
+  bool free_scale_prior = false;
   void Check() const;
 };
 
