@@ -198,13 +198,7 @@ json Rtabmap(const fs::path& root, bool quick) {
         in.id = static_cast<int64_t>(i);
         in.timestamp = static_cast<double>(i);
         in.image = images[i];
-        CameraIntrinsics intr;  // fx = fy = 0.9 width, centre (docs/DETECTOR.md)
-        intr.fx = intr.fy = 0.9 * images[i].cols;
-        intr.cx = 0.5 * images[i].cols;
-        intr.cy = 0.5 * images[i].rows;
-        intr.width = images[i].cols;
-        intr.height = images[i].rows;
-        in.intrinsics = intr;
+        in.intrinsics = test::GuessIntrinsics(images[i].cols, images[i].rows);
         const LoopResult r = detector.Process(in);
         if (!r.detected()) continue;
         const bool ok = gt.count({static_cast<int>(r.query_id), static_cast<int>(r.match_id)}) > 0;
@@ -255,12 +249,7 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
       if (asymmetric) query_options.max_features = options.query_max_features;
       std::vector<KeyframeRecord> stored(images.size()), query(images.size());
       for (size_t i = 0; i < images.size(); ++i) {
-        CameraIntrinsics intr;  // fx = fy = 0.9 width, centre (docs/DETECTOR.md)
-        intr.fx = intr.fy = 0.9 * images[i].cols;
-        intr.cx = 0.5 * images[i].cols;
-        intr.cy = 0.5 * images[i].rows;
-        intr.width = images[i].cols;
-        intr.height = images[i].rows;
+        const CameraIntrinsics intr = test::GuessIntrinsics(images[i].cols, images[i].rows);
         FeatureInput in;
         in.image = &images[i];
         in.intrinsics = &intr;
