@@ -313,37 +313,30 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
       const LoopConstraint& lb = loops_[b];
       const size_t qb = Index(lb.query_id), mb = Index(lb.match_id);
       // ma_from_qa * qa_from_qb * qb_from_mb * mb_from_ma == identity for consistent loops.
-      const Sim3d cycle = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]) *
-                          lb.match_from_query.Inverse() *
-                          (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+      const Sim3d left = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]);
+      const Sim3d right =
+          lb.match_from_query.Inverse() * (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+      const Sim3d cycle = left * right;
       Vector7d e = cycle.Log();
       if (!sim3) e[6] = 0.0;
       const Eigen::Matrix<double, 7, 1> cov_b = LoopMarginalVariances(lb);
       const Eigen::Matrix<double, 7, 1> cov =
           cov_a + cov_b + chains.Covariance(qa, qb) + chains.Covariance(ma, mb);
-      // A loop that leaves its relative scale free (PnP against the match's points: the query
-      // side has no depth) fixes it at 1 in its pose; under scale drift that is wrong by the
-      // scale change between match and query, and the cycle's translation inherits the error
-      // times a lever arm: for loop b the position of m_a seen from q_b (the match chain's
-      // length), for loop a that of m_a seen from q_a. The translation test is made in the
-      // whitened space with those directions projected out (one dof each), so a free scale is
-      // not read as an inconsistent translation.
-      // Directions (and variances) along which the cycle's translation moves with a free scale.
+      // PcmOptions::free_scale_prior: a loop that leaves its relative scale free (PnP against
+      // the match's points: the query side has no depth) says scale 1; under scale drift that is
+      // wrong by the scale change between match and query, and the cycle's translation inherits
+      // the error times a lever arm. Each such loop adds its scale prior (the chain's scale
+      // variance between its match and query) along that lever arm to the translation covariance.
       std::vector<std::pair<Eigen::Vector3d, double>> free;
       if (options.free_scale_prior && sim3 && std::isinf(cov_a[6])) {
         // exp(sigma_a) scales q_a_from_m_a through the cycle: m_a seen from q_a.
-        const Sim3d rest = (raw_poses_[qa].Inverse() * raw_poses_[qb]) *
-                           lb.match_from_query.Inverse() *
-                           (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+        const Sim3d rest = (raw_poses_[qa].Inverse() * raw_poses_[qb]) * right;
         free.emplace_back(
             la.match_from_query.scale * (la.match_from_query.rotation * rest.translation),
             chains.Covariance(ma, qa)[6]);
       }
       if (options.free_scale_prior && sim3 && std::isinf(cov_b[6])) {
         // exp(-sigma_b) scales q_b_from_m_a (m_a seen from q_b: the match chain).
-        const Sim3d left = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]);
-        const Sim3d right =
-            lb.match_from_query.Inverse() * (raw_poses_[mb].Inverse() * raw_poses_[ma]);
         free.emplace_back(left.scale * (left.rotation * right.translation),
                           chains.Covariance(mb, qb)[6]);
       }
