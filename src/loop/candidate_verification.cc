@@ -211,6 +211,8 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
   if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
       options_.local_map.enabled && match.has_pose) {
     VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
+    if (!m.success && options_.local_map.query_points)
+      m = VerifyWithQueryPoints(query, match_index, matches);
     if (m.success) {
       map_inliers = m.inliers;
       v.method = m.method;

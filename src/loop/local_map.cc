@@ -63,6 +63,43 @@ void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeReco
   v->pose_kind = RelativePoseKind::kSim3;
 }
 
+KeyframeRecord LoopDetector::QueryWithTriangulatedDepths(const KeyframeRecord& query,
+                                                         size_t query_index) const {
+  // The query's own points, triangulated with the keyframes before it (in the query's local
+  // scale, raw units at the query).
+  KeyframeRecord q = query;
+  if (!query.has_pose) return q;
+  const Options::LocalMapOptions& lm = options_.local_map;
+  std::vector<const KeyframeRecord*> before;
+  for (int64_t k = 1; k <= lm.neighbours; ++k) {
+    const int64_t i = static_cast<int64_t>(query_index) - k;
+    if (i >= 0 && records_[static_cast<size_t>(i)].has_pose() &&
+        SameSegment(static_cast<size_t>(i), query_index))
+      before.push_back(&Stored(static_cast<size_t>(i)));
+  }
+  const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
+  if (tri.triangulated > 0) q.depths = tri.depths;
+  return q;
+}
+
+VerificationResult LoopDetector::VerifyWithQueryPoints(
+    const KeyframeRecord& query, size_t match_index,
+    const std::vector<DescriptorMatch>& matches) const {
+  VerificationResult none;
+  none.method = VerificationMethod::kPnP;
+  const KeyframeRecord q = QueryWithTriangulatedDepths(query, index_of_.at(query.id));
+  if (!q.has_depths()) return none;
+  int usable = 0;
+  for (const DescriptorMatch& m : matches) usable += q.depths[static_cast<size_t>(m.query)] > 0;
+  if (usable < verify_.min_inliers) return none;
+  // Only the query's points: PnP of the match's 2D keypoints against them (points in the query
+  // frame, translation in the query's raw units; the relative scale stays free).
+  KeyframeRecord match = Stored(match_index);
+  match.depths.clear();
+  VerificationResult v = VerifyPair(q, match, matches, verify_);
+  return v.success && v.pose_kind == RelativePoseKind::kSE3Metric ? v : none;
+}
+
 VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
                                                        size_t match_index, int* map_points) const {
   const Options::LocalMapOptions& lm = options_.local_map;
@@ -137,18 +174,7 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   // scale): with both sides in 3D the relative pose is a Sim(3), whose scale is the scale drift
   // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
   // the 3D-3D model does not verify.
-  KeyframeRecord q = query;
-  if (query.has_pose) {
-    std::vector<const KeyframeRecord*> before;
-    for (int64_t k = 1; k <= lm.neighbours; ++k) {
-      const int64_t i = static_cast<int64_t>(query_index) - k;
-      if (i >= 0 && records_[static_cast<size_t>(i)].has_pose() &&
-          SameSegment(static_cast<size_t>(i), query_index))
-        before.push_back(&Stored(static_cast<size_t>(i)));
-    }
-    const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
-    if (tri.triangulated > 0) q.depths = tri.depths;
-  }
+  const KeyframeRecord q = QueryWithTriangulatedDepths(query, query_index);
   VerificationResult v = VerifyPair(q, map, matches, verify_);
   if (v.pose_kind == RelativePoseKind::kSE3Metric && q.has_depths())
     AddQueryScale(q, map, matches, &v);

@@ -238,6 +238,8 @@ void AddMatchingKeys(KeyList& k) {
         "keyframes each side of the match whose points enter the local map (>= 0)");
   k.Add(l + "neighbours", SL_FIELD(detector.local_map.neighbours), "keyframes",
         "keyframes each side each map keyframe is triangulated with (>= 1)");
+  k.Add(l + "query_points", SL_FIELD(detector.local_map.query_points), "",
+        "when the map falls short: PnP of the match against the query's triangulated points");
   k.Add(l + "max_reprojection_px", SL_FIELD(detector.local_map.triangulation.max_reprojection_px),
         "px", "a map point must reproject within this in both views");
   k.Add(l + "min_parallax_deg", SL_FIELD(detector.local_map.triangulation.min_parallax_deg), "deg",

@@ -394,6 +394,12 @@ class LoopDetector {
       bool enabled = true;
       int window = 2;      // keyframes each side of the match whose points enter the map, >= 0
       int neighbours = 2;  // keyframes each side each map keyframe is triangulated with, >= 1
+      // When the map around the match falls short (too few points: a match taken at standstill,
+      // with no parallax between its neighbours), the other way round: the query's points,
+      // triangulated with the keyframes before it, against the match's keypoints (PnP; the
+      // query's raw units). A two-view loop has only a direction, and the graph has to assume its
+      // length (direction_loop); this gives it.
+      bool query_points = true;
       TriangulationOptions triangulation;
       void Check() const;
     };
@@ -548,6 +554,13 @@ class LoopDetector {
                      const std::vector<DescriptorMatch>& matches, VerificationResult* v) const;
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
                                            int* map_points) const;
+  // `query` with depths triangulated from the keyframes before it (raw poses; unchanged when it
+  // has no pose or nothing triangulates).
+  KeyframeRecord QueryWithTriangulatedDepths(const KeyframeRecord& query, size_t query_index) const;
+  // Options::local_map.query_points: PnP of the match's keypoints against the query's
+  // triangulated points (the pair's own matches), when the map around the match falls short.
+  VerificationResult VerifyWithQueryPoints(const KeyframeRecord& query, size_t match_index,
+                                           const std::vector<DescriptorMatch>& matches) const;
 
   Options options_;
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
