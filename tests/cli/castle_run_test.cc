@@ -62,22 +62,16 @@ std::vector<Sim3d> Drift(const std::vector<Sim3d>& gt, double yaw_deg, double lo
   return raw;
 }
 
-TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
-  SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
-  const auto root = DataDir() / "castle_p30_768";
-  std::vector<Sim3d> gt;
-  double k[4] = {0, 0, 0, 0};
-  for (int i = 0; i < 30; ++i) {
-    gt.push_back(
-        Sim3d(ReadCastlePose(root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i), k)));
-  }
-  // 0.3 deg yaw and 0.5 % scale per step: 8.7 deg and 15 % at the end of the ring. KNOWN GAP: with
-  // 1 deg / 1 % per step (29 deg, 34 %) the detector reports no loop at all (with the GT as raw
-  // poses the same command finds 29 -> 1): the search area / pose-prior check is the suspect,
-  // not yet analysed (docs/SEARCH_AREA.md).
-  const std::vector<Sim3d> raw = Drift(gt, 0.3, 0.005);
+// `sparseloop run` on the castle images with `raw` as the raw poses; summary.json and loops.csv.
+struct CastleRun {
+  nlohmann::json summary;
+  std::string loops_csv;
+};
+CastleRun RunCastle(const std::filesystem::path& root, const double k[4],
+                    const std::vector<Sim3d>& gt, const std::vector<Sim3d>& raw,
+                    const std::string& name) {
   auto fixtures = TempDir();
-  fixtures += "_fixtures";
+  fixtures += "_" + name;
   std::filesystem::remove_all(fixtures);
   std::filesystem::create_directories(fixtures);
   WriteKitti(fixtures / "gt.txt", gt);
@@ -87,35 +81,61 @@ TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
                               "--intrinsics", fmt::format("{},{},{},{}", k[0], k[1], k[2], k[3]),
                               "--poses", (fixtures / "raw.txt").string(), "--gt",
                               (fixtures / "gt.txt").string(), "--out", out.string(), "--quiet"});
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  CastleRun run;
   std::ifstream in(out / "summary.json");
-  const nlohmann::json summary = nlohmann::json::parse(in);
-  const double raw_ate = summary["eval"]["raw"]["ate_rmse_m"].get<double>();
-  const double corrected_ate = summary["eval"]["corrected"]["ate_rmse_m"].get<double>();
+  run.summary = nlohmann::json::parse(in);
   std::ifstream loops_in(out / "loops.csv");
-  std::string loops_csv((std::istreambuf_iterator<char>(loops_in)), {});
-  std::cerr << fmt::format("castle drifted: raw ATE {:.3f} m, corrected {:.3f} m ({:.0f}%)\n",
-                           raw_ate, corrected_ate, 100 * corrected_ate / raw_ate)
-            << loops_csv;
-  EXPECT_TRUE(loops_csv.find("\n29,1,") != std::string::npos ||
-              loops_csv.find("\n29,2,") != std::string::npos)
-      << "the ring closure 0029 -> 0001/0002 was not detected:\n"
-      << loops_csv;
-  EXPECT_GE(summary["accepted_loops"].get<int>(), 1);
-  // 30 keyframes, a loop from 29: the chain reduction leaves the loop ends, the gauge and every
-  // 8th chain vertex in the solve.
-  const nlohmann::json& optimizer = summary["optimizer"];
-  EXPECT_EQ(optimizer["vertices"].get<int>(), 30);
-  EXPECT_LT(optimizer["solved_vertices"].get<int>(), 30);
-  EXPECT_GE(optimizer["solved_vertices"].get<int>(), 3);
-  EXPECT_LT(optimizer["final_cost"].get<double>(), optimizer["initial_cost"].get<double>());
-  EXPECT_EQ(loops_csv.substr(0, loops_csv.find('\n')),
-            "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
-            "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image");
-  // Reached: 1.107 -> 0.984 m (89 %; the same with and without the chain reduction, which
-  // solves 6 of the 30 vertices here). One 2D-only loop (unit translation, no scale) over a
-  // 29-view ring cannot undo the scale drift inside the ring.
-  EXPECT_LT(corrected_ate, 0.9 * raw_ate);
+  run.loops_csv.assign(std::istreambuf_iterator<char>(loops_in), {});
+  return run;
+}
+
+TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
+  SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
+  const auto root = DataDir() / "castle_p30_768";
+  std::vector<Sim3d> gt;
+  double k[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 30; ++i) {
+    gt.push_back(
+        Sim3d(ReadCastlePose(root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i), k)));
+  }
+  // 0.3 deg yaw and 0.5 % scale per step (8.7 deg and 15 % at the end of the ring), and 1 deg /
+  // 1 % per step (29 deg, 34 %; until session 24 documented as a known gap: no loop at all).
+  struct DriftLevel {
+    double yaw_deg, log_scale;
+    const char* name;
+  };
+  for (const DriftLevel& d :
+       {DriftLevel{0.3, 0.005, "drift03"}, DriftLevel{1.0, 0.01, "drift10"}}) {
+    SCOPED_TRACE(d.name);
+    const CastleRun run = RunCastle(root, k, gt, Drift(gt, d.yaw_deg, d.log_scale), d.name);
+    const nlohmann::json& summary = run.summary;
+    const std::string& loops_csv = run.loops_csv;
+    const double raw_ate = summary["eval"]["raw"]["ate_rmse_m"].get<double>();
+    const double corrected_ate = summary["eval"]["corrected"]["ate_rmse_m"].get<double>();
+    std::cerr << fmt::format("castle {}: raw ATE {:.3f} m, corrected {:.3f} m ({:.0f}%)\n", d.name,
+                             raw_ate, corrected_ate, 100 * corrected_ate / raw_ate)
+              << loops_csv;
+    EXPECT_TRUE(loops_csv.find("\n29,1,") != std::string::npos ||
+                loops_csv.find("\n29,2,") != std::string::npos)
+        << "the ring closure 0029 -> 0001/0002 was not detected:\n"
+        << loops_csv;
+    EXPECT_GE(summary["accepted_loops"].get<int>(), 1);
+    // 30 keyframes, a loop from 29: the chain reduction leaves the loop ends, the gauge and every
+    // 8th chain vertex in the solve.
+    const nlohmann::json& optimizer = summary["optimizer"];
+    EXPECT_EQ(optimizer["vertices"].get<int>(), 30);
+    EXPECT_LT(optimizer["solved_vertices"].get<int>(), 30);
+    EXPECT_GE(optimizer["solved_vertices"].get<int>(), 3);
+    EXPECT_LT(optimizer["final_cost"].get<double>(), optimizer["initial_cost"].get<double>());
+    EXPECT_EQ(loops_csv.substr(0, loops_csv.find('\n')),
+              "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,"
+              "qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image");
+    // Reached (session 24): 1.107 -> 0.247 m (22 %) and 2.967 -> 0.531 m (18 %), one metric loop
+    // 29 -> 02 (local-map PnP) each; session 5 reached 89 % at the smaller drift (the odometry
+    // model was stiffer than this drift until the weight rounds of session 22).
+    EXPECT_LT(corrected_ate, 0.4 * raw_ate);
+  }
 }
 
 }  // namespace
