@@ -111,7 +111,7 @@ std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, 
 LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
                                       const std::vector<int64_t>& candidate_ids) {
   Timer total;
-  unpacked_.clear();
+  ClearCallCaches();
   LoopResult result;
   result.query_id = query.id;
   SearchAndVerify(query, candidate_ids, &result);

@@ -63,11 +63,14 @@ void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeReco
   v->pose_kind = RelativePoseKind::kSim3;
 }
 
-KeyframeRecord LoopDetector::QueryWithTriangulatedDepths(const KeyframeRecord& query,
-                                                         size_t query_index) const {
+const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRecord& query,
+                                                                size_t query_index) const {
+  if (query_points_ && query_points_->id == query.id && query_points_->size == query.size())
+    return query_points_->record;
+  query_points_ = QueryPoints{query.id, query.size(), query};
   // The query's own points, triangulated with the keyframes before it (in the query's local
   // scale, raw units at the query).
-  KeyframeRecord q = query;
+  KeyframeRecord& q = query_points_->record;
   if (!query.has_pose) return q;
   const Options::LocalMapOptions& lm = options_.local_map;
   std::vector<const KeyframeRecord*> before;
@@ -87,7 +90,7 @@ VerificationResult LoopDetector::VerifyWithQueryPoints(
     const std::vector<DescriptorMatch>& matches) const {
   VerificationResult none;
   none.method = VerificationMethod::kPnP;
-  const KeyframeRecord q = QueryWithTriangulatedDepths(query, index_of_.at(query.id));
+  const KeyframeRecord& q = QueryWithTriangulatedDepths(query, index_of_.at(query.id));
   if (!q.has_depths()) return none;
   int usable = 0;
   for (const DescriptorMatch& m : matches) usable += q.depths[static_cast<size_t>(m.query)] > 0;
@@ -174,7 +177,7 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   // scale): with both sides in 3D the relative pose is a Sim(3), whose scale is the scale drift
   // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
   // the 3D-3D model does not verify.
-  const KeyframeRecord q = QueryWithTriangulatedDepths(query, query_index);
+  const KeyframeRecord& q = QueryWithTriangulatedDepths(query, query_index);
   VerificationResult v = VerifyPair(q, map, matches, verify_);
   if (v.pose_kind == RelativePoseKind::kSE3Metric && q.has_depths())
     AddQueryScale(q, map, matches, &v);

@@ -246,7 +246,7 @@ bool LoopDetector::ValidateInput(const KeyframeInput& input) const {
 }
 
 size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
-  unpacked_.clear();
+  ClearCallCaches();
   const size_t index = records_.size();
   // A keyframe without a pose (global search only) stays where the last posed one was: the
   // path length across the gap is the chord between the posed keyframes around it.

@@ -40,7 +40,7 @@ void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord
                    session, r.id);
     }
   }
-  unpacked_.clear();  // prior_records_ may move
+  ClearCallCaches();  // prior_records_ may move
   std::vector<PackedKeyframe> packed;
   packed.reserve(records.size());
   for (const auto& r : records) packed.push_back(PackRecord(r));
@@ -66,7 +66,7 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   LoopResult result;
   result.query_id = input.id;
   result.relocalization = true;
-  unpacked_.clear();
+  ClearCallCaches();
   Timer stage;
   KeyframeRecord rec = ExtractRecord(input);
   result.timings.extract_ms = stage.ElapsedMs();

@@ -422,6 +422,10 @@ void AddOptimizerKeys(KeyList& k) {
         "PCM: scale sigma per step (Sim(3))");
   k.Add(p + "pcm_free_scale_prior", SL_FIELD(optimizer.pcm.free_scale_prior), "",
         "PCM: test loops with a free scale (se3_metric) with the scale drift prior, not at 1");
+  k.Add(p + "pcm_odometry_check", SL_FIELD(optimizer.pcm.odometry_check), "",
+        "PCM: also test each loop alone against its own odometry chain");
+  k.Add(p + "pcm_odometry_check_confidence", SL_FIELD(optimizer.pcm.odometry_check_confidence),
+        "probability", "PCM: chi-square quantile of the single-loop odometry test");
   k.Add(p + "pcm_max_exact_clique", SL_FIELD(optimizer.pcm.max_exact_clique), "loops",
         "PCM: above this many loops a greedy clique is used");
   k.Add(p + "switch_prior_sigma", SL_FIELD(optimizer.switch_prior_sigma), "",

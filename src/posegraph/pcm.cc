@@ -270,10 +270,12 @@ Eigen::Matrix<double, 7, 1> LoopMarginalVariances(const LoopConstraint& loop) {
 }  // namespace
 
 void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
-                                   std::vector<std::vector<bool>>* adj) const {
+                                   std::vector<std::vector<bool>>* adj,
+                                   std::vector<bool>* odometry_ok) const {
   const size_t n = loops_.size();
   adj->resize(n);
   for (auto& row : *adj) row.resize(n, false);
+  odometry_ok->resize(n, true);
   if (from >= n) return;
   // Per-step variances (step k: vertex k-1 -> k, insertion order): the model's, or those of the
   // caller's covariance where the step's edge carries one.
@@ -302,6 +304,21 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   const ChainStatistics chains(raw_poses_, step_t2, step_r2, sr2, ss2);
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
+  // The single-loop odometry test: match_from_query * query_from_match (raw) == identity.
+  for (size_t k = from; options.odometry_check && k < n; ++k) {
+    const LoopConstraint& l = loops_[k];
+    const size_t q = Index(l.query_id), m = Index(l.match_id);
+    const Vector7d e = (l.match_from_query * (raw_poses_[q].Inverse() * raw_poses_[m])).Log();
+    const Eigen::Matrix<double, 7, 1> cov = LoopMarginalVariances(l) + chains.Covariance(m, q);
+    double chi2 = 0.0;
+    int dof = 0;
+    for (int d = 0; d < 6; ++d) {  // translation and rotation; scale left out (see PcmOptions)
+      if (!std::isfinite(cov[d])) continue;
+      chi2 += e[d] * e[d] / std::max(cov[d], 1e-18);
+      ++dof;
+    }
+    (*odometry_ok)[k] = dof == 0 || chi2 <= Chi2Quantile(options.odometry_check_confidence, dof);
+  }
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot
   // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
   // raw poses up to its own vertices).
@@ -362,14 +379,28 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
 
 namespace {
 
+// The maximum clique among the loops that passed the single-loop test (odometry_ok).
 std::vector<size_t> MaximumClique(const std::vector<std::vector<bool>>& adj,
+                                  const std::vector<bool>& odometry_ok,
                                   const std::vector<LoopConstraint>& loops,
                                   const PcmOptions& options) {
+  std::vector<size_t> eligible;
+  for (size_t k = 0; k < loops.size(); ++k)
+    if (odometry_ok[k]) eligible.push_back(k);
+  const bool all = eligible.size() == loops.size();
+  std::vector<std::vector<bool>> sub;
+  if (!all) {
+    sub.assign(eligible.size(), std::vector<bool>(eligible.size(), false));
+    for (size_t a = 0; a < eligible.size(); ++a)
+      for (size_t b = 0; b < eligible.size(); ++b) sub[a][b] = adj[eligible[a]][eligible[b]];
+  }
+  const std::vector<std::vector<bool>>& graph = all ? adj : sub;
   std::vector<double> weights;
-  for (const LoopConstraint& l : loops) weights.push_back(l.weight);
-  CliqueFinder finder(adj, weights);
+  for (size_t k : eligible) weights.push_back(loops[k].weight);
+  CliqueFinder finder(graph, weights);
   std::vector<size_t> clique = finder.Greedy();
-  if (adj.size() <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
+  if (graph.size() <= options.max_exact_clique) clique = finder.Exact(clique, 2000000);
+  for (size_t& v : clique) v = eligible[v];
   std::sort(clique.begin(), clique.end());
   return clique;
 }
@@ -379,7 +410,9 @@ bool SameConsistencyTest(const PcmOptions& a, const PcmOptions& b) {
   return a.confidence == b.confidence &&
          a.step_translation_fraction == b.step_translation_fraction &&
          a.step_rotation_sigma_rad == b.step_rotation_sigma_rad &&
-         a.step_scale_sigma == b.step_scale_sigma && a.free_scale_prior == b.free_scale_prior;
+         a.step_scale_sigma == b.step_scale_sigma && a.free_scale_prior == b.free_scale_prior &&
+         a.odometry_check == b.odometry_check &&
+         a.odometry_check_confidence == b.odometry_check_confidence;
 }
 
 }  // namespace
@@ -413,8 +446,9 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
   options.Check();
   if (loops_.empty()) return {};
   std::vector<std::vector<bool>> adj;
-  ExtendPcmAdjacency(options, 0, &adj);
-  return MaximumClique(adj, loops_, options);
+  std::vector<bool> odometry_ok;
+  ExtendPcmAdjacency(options, 0, &adj, &odometry_ok);
+  return MaximumClique(adj, odometry_ok, loops_, options);
 }
 
 std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& options) {
@@ -425,9 +459,9 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
     pcm_cache_.valid = true;
     pcm_cache_.options = options;
   }
-  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj);
+  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj, &pcm_cache_.odometry_ok);
   pcm_cache_.loops = loops_.size();
-  return MaximumClique(pcm_cache_.adj, loops_, options);
+  return MaximumClique(pcm_cache_.adj, pcm_cache_.odometry_ok, loops_, options);
 }
 
 }  // namespace sparseloop

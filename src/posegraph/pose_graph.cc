@@ -206,6 +206,8 @@ void PcmOptions::Check() const {
                confidence);
   SL_CHECK_MSG(step_translation_fraction > 0 && step_rotation_sigma_rad > 0 && step_scale_sigma > 0,
                "pcm step sigmas must be > 0");
+  SL_CHECK_MSG(odometry_check_confidence > 0 && odometry_check_confidence < 1,
+               "pcm odometry_check_confidence must be in (0,1), got {}", odometry_check_confidence);
 }
 
 void PoseGraphOptions::Check() const {

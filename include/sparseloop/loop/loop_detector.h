@@ -545,6 +545,19 @@ class LoopDetector {
   const KeyframeRecord& Unpacked(const PackedKeyframe& packed) const;
   const KeyframeRecord& Stored(size_t index) const { return Unpacked(records_[index]); }
   mutable std::unordered_map<const PackedKeyframe*, KeyframeRecord> unpacked_;
+  // QueryWithTriangulatedDepths' result for the current call: the same for every candidate of
+  // one query (keyed by its id and size), triangulated once.
+  struct QueryPoints {
+    int64_t id = 0;
+    size_t size = 0;
+    KeyframeRecord record;
+  };
+  mutable std::optional<QueryPoints> query_points_;
+  // Clears the per-call caches (unpacked_, query_points_) when a new call starts.
+  void ClearCallCaches() const {
+    unpacked_.clear();
+    query_points_.reset();
+  }
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size
@@ -555,8 +568,9 @@ class LoopDetector {
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
                                            int* map_points) const;
   // `query` with depths triangulated from the keyframes before it (raw poses; unchanged when it
-  // has no pose or nothing triangulates).
-  KeyframeRecord QueryWithTriangulatedDepths(const KeyframeRecord& query, size_t query_index) const;
+  // has no pose or nothing triangulates). Computed once per call (query_points_).
+  const KeyframeRecord& QueryWithTriangulatedDepths(const KeyframeRecord& query,
+                                                    size_t query_index) const;
   // Options::local_map.query_points: PnP of the match's keypoints against the query's
   // triangulated points (the pair's own matches), when the map around the match falls short.
   VerificationResult VerifyWithQueryPoints(const KeyframeRecord& query, size_t match_index,

@@ -106,6 +106,16 @@ struct PcmOptions {
   // loop's match and query) along that lever arm, instead of at scale 1. Off by default until the
   // drift family is re-run with it (docs/POSEGRAPH.md, "Loops with a free scale in PCM").
   bool free_scale_prior = false;
+  // Besides the pairwise test, each loop against its own odometry chain (Kimera-RPGO's odometry
+  // check): the cycle `Z * raw(q)^-1 * raw(m)` with the loop's marginal covariance plus the chain
+  // model's between match and query, translation and rotation (scale left out: render and real
+  // scale drift has a bias the random-walk model does not hold, docs/POSEGRAPH.md), at
+  // `odometry_check_confidence`. A loop failing it is rejected even when no other loop
+  // contradicts it (the pairwise test cannot: a lone loop, or a group of loops that agree on the
+  // same wrong place, is a clique). Off by default (docs/POSEGRAPH.md, "Each loop against its
+  // odometry").
+  bool odometry_check = false;
+  double odometry_check_confidence = 0.999;  // chi2 quantile of the single-loop test
   void Check() const;
 };
 
@@ -282,14 +292,18 @@ class PoseGraph {
                   const std::vector<double>& switches) const;
   // Sets (*adj) to the pairwise consistency of all loops, computing only the pairs with a loop
   // index >= from (the rest of *adj must hold the earlier result).
+  // Also sets (*odometry_ok)[k] for k >= from: loop k passes the single-loop odometry test
+  // (PcmOptions::odometry_check; always true when it is off).
   void ExtendPcmAdjacency(const PcmOptions& options, size_t from,
-                          std::vector<std::vector<bool>>* adj) const;
+                          std::vector<std::vector<bool>>* adj,
+                          std::vector<bool>* odometry_ok) const;
 
   struct PcmCache {
     bool valid = false;
     PcmOptions options;
     size_t loops = 0;  // loops covered by adj
     std::vector<std::vector<bool>> adj;
+    std::vector<bool> odometry_ok;
   };
   PcmCache pcm_cache_;
 
