@@ -271,11 +271,12 @@ Eigen::Matrix<double, 7, 1> LoopMarginalVariances(const LoopConstraint& loop) {
 
 void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
                                    std::vector<std::vector<bool>>* adj,
-                                   std::vector<bool>* odometry_ok) const {
+                                   OdometryResiduals* odometry) const {
   const size_t n = loops_.size();
   adj->resize(n);
   for (auto& row : *adj) row.resize(n, false);
-  odometry_ok->resize(n, true);
+  odometry->chi2.resize(n, 0.0);
+  odometry->dof.resize(n, 0);
   if (from >= n) return;
   // Per-step variances (step k: vertex k-1 -> k, insertion order): the model's, or those of the
   // caller's covariance where the step's edge carries one.
@@ -304,20 +305,32 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   const ChainStatistics chains(raw_poses_, step_t2, step_r2, sr2, ss2);
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
-  // The single-loop odometry test: match_from_query * query_from_match (raw) == identity.
+  // The single-loop odometry test: match_from_query * query_from_match (raw) == identity, with
+  // the loop's full information (its marginal variances alone would call a loop whose rotation
+  // is well known only together with its translation, as a two-view Sim(3) without depths is,
+  // uninformative) plus the chain's diagonal covariance: (chain + info^-1)^-1 = C - C (info + C)^-1
+  // C with C = chain^-1, defined also where the loop's information is singular.
   for (size_t k = from; options.odometry_check && k < n; ++k) {
     const LoopConstraint& l = loops_[k];
     const size_t q = Index(l.query_id), m = Index(l.match_id);
-    const Vector7d e = (l.match_from_query * (raw_poses_[q].Inverse() * raw_poses_[m])).Log();
-    const Eigen::Matrix<double, 7, 1> cov = LoopMarginalVariances(l) + chains.Covariance(m, q);
-    double chi2 = 0.0;
+    // The loop's residual at the raw poses (as CheckLoop: the frame its information is in).
+    const Vector6d e =
+        (l.match_from_query.Inverse() * raw_poses_[m].Inverse() * raw_poses_[q]).Log().head<6>();
+    // Translation and rotation; the scale marginalised out (see PcmOptions::odometry_check).
+    const Matrix7d info7 = LoopEffectiveInformation(l);
+    Eigen::Matrix<double, 6, 6> info = info7.topLeftCorner<6, 6>();
+    if (info7(6, 6) > 0) info -= info7.block<6, 1>(0, 6) * info7.block<1, 6>(6, 0) / info7(6, 6);
+    const Eigen::Matrix<double, 7, 1> chain = chains.Covariance(m, q);
+    const Eigen::Matrix<double, 6, 6> c =
+        chain.head<6>().cwiseMax(1e-12).cwiseInverse().asDiagonal();
+    const Eigen::Matrix<double, 6, 6> weight = c - c * (info + c).ldlt().solve(c);
+    const double chi2 = e.dot(weight * e);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(info);
+    const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
     int dof = 0;
-    for (int d = 0; d < 6; ++d) {  // translation and rotation; scale left out (see PcmOptions)
-      if (!std::isfinite(cov[d])) continue;
-      chi2 += e[d] * e[d] / std::max(cov[d], 1e-18);
-      ++dof;
-    }
-    (*odometry_ok)[k] = dof == 0 || chi2 <= Chi2Quantile(options.odometry_check_confidence, dof);
+    for (int d = 0; d < 6; ++d) dof += eig.eigenvalues()[d] > tol ? 1 : 0;
+    odometry->chi2[k] = chi2;
+    odometry->dof[k] = dof;
   }
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot
   // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
@@ -379,14 +392,32 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
 
 namespace {
 
-// The maximum clique among the loops that passed the single-loop test (odometry_ok).
+// The loops that pass the single-loop odometry test (PcmOptions::odometry_check): chi2 divided
+// by the calibration max(1, median over the loops of chi2 / the model's median for its dof).
+std::vector<size_t> PassOdometryTest(const PcmOptions& options, const std::vector<double>& chi2,
+                                     const std::vector<int>& dof) {
+  std::vector<size_t> pass;
+  std::vector<double> ratio;
+  for (size_t k = 0; k < chi2.size(); ++k)
+    if (dof[k] > 0) ratio.push_back(chi2[k] / Chi2Quantile(0.5, dof[k]));
+  double calibration = 1.0;
+  if (!ratio.empty()) {
+    std::nth_element(ratio.begin(), ratio.begin() + ratio.size() / 2, ratio.end());
+    calibration = std::max(1.0, ratio[ratio.size() / 2]);
+  }
+  for (size_t k = 0; k < chi2.size(); ++k) {
+    if (dof[k] == 0 ||
+        chi2[k] / calibration <= Chi2Quantile(options.odometry_check_confidence, dof[k]))
+      pass.push_back(k);
+  }
+  return pass;
+}
+
+// The maximum clique among the loops that passed the single-loop test.
 std::vector<size_t> MaximumClique(const std::vector<std::vector<bool>>& adj,
-                                  const std::vector<bool>& odometry_ok,
+                                  const std::vector<size_t>& eligible,
                                   const std::vector<LoopConstraint>& loops,
                                   const PcmOptions& options) {
-  std::vector<size_t> eligible;
-  for (size_t k = 0; k < loops.size(); ++k)
-    if (odometry_ok[k]) eligible.push_back(k);
   const bool all = eligible.size() == loops.size();
   std::vector<std::vector<bool>> sub;
   if (!all) {
@@ -446,9 +477,10 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
   options.Check();
   if (loops_.empty()) return {};
   std::vector<std::vector<bool>> adj;
-  std::vector<bool> odometry_ok;
-  ExtendPcmAdjacency(options, 0, &adj, &odometry_ok);
-  return MaximumClique(adj, odometry_ok, loops_, options);
+  OdometryResiduals odometry;
+  ExtendPcmAdjacency(options, 0, &adj, &odometry);
+  return MaximumClique(adj, PassOdometryTest(options, odometry.chi2, odometry.dof), loops_,
+                       options);
 }
 
 std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& options) {
@@ -459,9 +491,11 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
     pcm_cache_.valid = true;
     pcm_cache_.options = options;
   }
-  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj, &pcm_cache_.odometry_ok);
+  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj, &pcm_cache_.odometry);
   pcm_cache_.loops = loops_.size();
-  return MaximumClique(pcm_cache_.adj, pcm_cache_.odometry_ok, loops_, options);
+  const OdometryResiduals& odometry = pcm_cache_.odometry;
+  return MaximumClique(pcm_cache_.adj, PassOdometryTest(options, odometry.chi2, odometry.dof),
+                       loops_, options);
 }
 
 }  // namespace sparseloop
