@@ -1,6 +1,7 @@
 // Pairwise consistency maximisation (PCM) of loop constraints.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <utility>
 #include <vector>
@@ -329,7 +330,8 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
     int dof = 0;
     for (int d = 0; d < 6; ++d) dof += eig.eigenvalues()[d] > tol ? 1 : 0;
-    odometry->chi2[k] = chi2;
+    // A residual that is not finite fails (as in the pairwise test), and the median stays defined.
+    odometry->chi2[k] = std::isnan(chi2) ? std::numeric_limits<double>::infinity() : chi2;
     odometry->dof[k] = dof;
   }
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot

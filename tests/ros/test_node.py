@@ -311,6 +311,27 @@ def wait_for(condition, timeout, what, proc=None):
         time.sleep(0.05)
 
 
+def last_with_positions(messages, positions, xyz_of):
+    """The last of `messages` whose positions (xyz_of(message), n x 3) are `positions` (1e-6), or
+    None: a path and its markers belong to one solve, and a solve during the run can have as many
+    keyframes as the final one."""
+    for m in reversed(messages):
+        xyz = xyz_of(m)
+        if xyz.shape == positions.shape and np.abs(xyz - positions).max() < 1e-6:
+            return m
+    return None
+
+
+def path_xyz(path):
+    return np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z]
+                     for p in path.poses]).reshape(-1, 3)
+
+
+def keyframe_strip_xyz(markers):
+    strip = [m for m in markers.markers if m.ns == "keyframes"][0]
+    return np.array([[p.x, p.y, p.z] for p in strip.points]).reshape(-1, 3)
+
+
 def loop_pairs(run, sequence):
     pairs = set()
     for m in run.loops:
@@ -346,7 +367,14 @@ def test_node_on_a_played_bag_matches_run(ros, request, flight, solve_while_runn
         # Every image reached the node before it is told to finish.
         wait_for(lambda: run.diag.get("images", 0) >= 60, 30, "60 images at the node", run.proc)
         summary = run.finish()
-        wait_for(lambda: run.paths and len(run.paths[-1].poses) == 60, 10, "the final path")
+        # The final solve's path and markers, published before finish returned (their positions
+        # are the trajectory file's, written from the same solve); a solve while the bag played
+        # can have all 60 keyframes too, and its markers may be the last ones received so far.
+        final = sparseloop.read_trajectory(str(traj_file), "tum")["poses"][:, :3, 3]
+        wait_for(lambda: last_with_positions(run.paths, final, path_xyz) is not None, 10,
+                 "the final path")
+        wait_for(lambda: last_with_positions(run.markers, final, keyframe_strip_xyz) is not None,
+                 10, "the final path's markers")
     finally:
         run.close()
     assert summary["keyframes"] == 60 and summary["keyframes_without_pose"] == 0, summary
@@ -358,8 +386,8 @@ def test_node_on_a_played_bag_matches_run(ros, request, flight, solve_while_runn
     assert accepted == sequence.run_accepted
     # The corrected path: run's trajectory (one solve at the end: to 1e-6 m; solved while the
     # bag plays: the final solve starts from earlier corrections, to 0.05 m).
-    path = run.paths[-1]
-    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in path.poses])
+    path = last_with_positions(run.paths, final, path_xyz)
+    xyz = path_xyz(path)
     stamps = [p.header.stamp.to_sec() for p in path.poses]
     assert [sequence.frame_of(s) for s in stamps] == list(range(60))
     # Solved while running, the final solve starts from the previous estimate and Ceres stops at
@@ -374,7 +402,8 @@ def test_node_on_a_played_bag_matches_run(ros, request, flight, solve_while_runn
     # The trajectory file (TUM) is the path; markers draw the kept loops.
     written = sparseloop.read_trajectory(str(traj_file), "tum")
     assert np.abs(written["poses"][:, :3, 3] - xyz).max() < 1e-6
-    loops_marker = [m for m in run.markers[-1].markers if m.ns == "loops"][0]
+    markers = last_with_positions(run.markers, final, keyframe_strip_xyz)
+    loops_marker = [m for m in markers.markers if m.ns == "loops"][0]
     assert len(loops_marker.points) == 2 * len(accepted)
 
 
