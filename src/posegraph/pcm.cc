@@ -107,6 +107,14 @@ double Chi2Quantile(double p, int dof) {
   return k * c * c * c;
 }
 
+// The directions an information matrix observes: eigenvalues above 1e-9 of the largest.
+template <int N>
+int ObservableDof(const Eigen::Matrix<double, N, N>& info) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(info);
+  const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
+  return static_cast<int>((eig.eigenvalues().array() > tol).count());
+}
+
 // Maximum clique: greedy by degree, then exact branch and bound when small enough. Among cliques
 // of the same size the one with the larger sum of loop weights wins: two loops that contradict
 // each other (a strong metric loop of 80 inliers and a weak two-view one of 24) are each a
@@ -306,7 +314,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   const ChainStatistics chains(raw_poses_, step_t2, step_r2, sr2, ss2);
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
-  // The single-loop odometry test: match_from_query * query_from_match (raw) == identity, with
+  // The single-loop odometry test: the loop's residual at the raw poses against zero, with
   // the loop's full information (its marginal variances alone would call a loop whose rotation
   // is well known only together with its translation, as a two-view Sim(3) without depths is,
   // uninformative) plus the chain's diagonal covariance: (chain + info^-1)^-1 = C - C (info + C)^-1
@@ -326,13 +334,9 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
         chain.head<6>().cwiseMax(1e-12).cwiseInverse().asDiagonal();
     const Eigen::Matrix<double, 6, 6> weight = c - c * (info + c).ldlt().solve(c);
     const double chi2 = e.dot(weight * e);
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(info);
-    const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
-    int dof = 0;
-    for (int d = 0; d < 6; ++d) dof += eig.eigenvalues()[d] > tol ? 1 : 0;
     // A residual that is not finite fails (as in the pairwise test), and the median stays defined.
     odometry->chi2[k] = std::isnan(chi2) ? std::numeric_limits<double>::infinity() : chi2;
-    odometry->dof[k] = dof;
+    odometry->dof[k] = ObservableDof<6>(info);
   }
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot
   // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
@@ -398,19 +402,22 @@ namespace {
 // by the calibration max(1, median over the loops of chi2 / the model's median for its dof).
 std::vector<size_t> PassOdometryTest(const PcmOptions& options, const std::vector<double>& chi2,
                                      const std::vector<int>& dof) {
+  std::vector<double> median(7, 1.0), threshold(7, 0.0);  // by dof (at most 6)
+  for (int d = 1; d <= 6; ++d) {
+    median[d] = Chi2Quantile(0.5, d);
+    threshold[d] = Chi2Quantile(options.odometry_check_confidence, d);
+  }
   std::vector<size_t> pass;
   std::vector<double> ratio;
   for (size_t k = 0; k < chi2.size(); ++k)
-    if (dof[k] > 0) ratio.push_back(chi2[k] / Chi2Quantile(0.5, dof[k]));
+    if (dof[k] > 0) ratio.push_back(chi2[k] / median[dof[k]]);
   double calibration = 1.0;
   if (!ratio.empty()) {
     std::nth_element(ratio.begin(), ratio.begin() + ratio.size() / 2, ratio.end());
     calibration = std::max(1.0, ratio[ratio.size() / 2]);
   }
   for (size_t k = 0; k < chi2.size(); ++k) {
-    if (dof[k] == 0 ||
-        chi2[k] / calibration <= Chi2Quantile(options.odometry_check_confidence, dof[k]))
-      pass.push_back(k);
+    if (dof[k] == 0 || chi2[k] / calibration <= threshold[dof[k]]) pass.push_back(k);
   }
   return pass;
 }
@@ -464,9 +471,7 @@ LoopResidualCheck PoseGraph::CheckLoop(size_t index, double confidence) const {
   if (type_ != VertexType::kSim3) r[6] = 0.0;
   const Matrix7d info = LoopEffectiveInformation(loop);
   check.chi2 = r.dot(info * r);
-  const Eigen::SelfAdjointEigenSolver<Matrix7d> eig(info);
-  const double tol = 1e-9 * std::max(eig.eigenvalues().maxCoeff(), 0.0);
-  for (int k = 0; k < 7; ++k) check.dof += eig.eigenvalues()[k] > tol ? 1 : 0;
+  check.dof = ObservableDof<7>(info);
   check.threshold = check.dof > 0 ? Chi2Quantile(confidence, check.dof) : 0.0;
   check.consistent = check.dof == 0 || check.chi2 <= check.threshold;
   check.translation_error = r.head<3>().norm();
