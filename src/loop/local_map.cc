@@ -17,51 +17,11 @@ namespace {
 
 // PnP of the query against the match's local map fixes the query camera in match units; the
 // query's own triangulated depths (query units) of the same inliers then give the relative scale
-// directly: s = z(query_from_match * P) / z_query per inlier, robustly the median. A 3-point
-// Sim(3) RANSAC between two noisy triangulated clouds rarely passes the 2 px check in both
-// cameras (castle 29 -> 02 falls back to PnP), while this needs no 3D-3D hypothesis. The loop
-// becomes kSim3 with the scale's information n / var(log s_i) added to the PnP information.
-// Needs kMinScalePairs inliers with a query depth.
+// (AddScaleFromQueryDepths; castle 29 -> 02's Sim(3) RANSAC falls short and PnP is kept). Needs
+// kMinScalePairs inliers with a query depth.
 constexpr int kMinScalePairs = 8;
 
 }  // namespace
-
-void LoopDetector::AddQueryScale(const KeyframeRecord& query, const KeyframeRecord& map,
-                                 const std::vector<DescriptorMatch>& matches,
-                                 VerificationResult* v) const {
-  const Sim3d query_from_match = v->match_from_query.Inverse();
-  std::vector<double> log_ratio;
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> observed;
-  for (int i : v->inlier_matches) {
-    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
-    const CompactKeypoint& k = map.keypoints[static_cast<size_t>(m.train)];
-    const CompactKeypoint& kq = query.keypoints[static_cast<size_t>(m.query)];
-    const float zm = map.depths[static_cast<size_t>(m.train)];
-    const float zq = query.depths[static_cast<size_t>(m.query)];
-    points.push_back(double(zm) * Eigen::Vector3d(k.x, k.y, 1.0));
-    observed.emplace_back(kq.x, kq.y);
-    if (zq <= 0 || zm <= 0) continue;
-    const double z = (query_from_match * points.back()).z();
-    if (z > 0) log_ratio.push_back(std::log(z / zq));
-  }
-  if (static_cast<int>(log_ratio.size()) < kMinScalePairs) return;
-  std::vector<double> sorted = log_ratio;
-  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-  const double median = sorted[sorted.size() / 2];
-  // Robust spread: 1.4826 x the median absolute deviation, floored (a few identical ratios).
-  std::vector<double> dev;
-  for (double r : log_ratio) dev.push_back(std::abs(r - median));
-  std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
-  const double sigma = std::max(1.4826 * dev[dev.size() / 2], 1e-3);
-  v->match_from_query.scale = std::exp(median);
-  // The PnP information again at the scaled pose (its translation columns scale with s).
-  const float focal = std::max(1.0f, 0.5f * (query.focal_px + map.focal_px));
-  v->information = PnpInformationPointsInMatch(points, observed, v->match_from_query,
-                                               verify_.InformationOptions(focal));
-  v->information(6, 6) += static_cast<double>(log_ratio.size()) / (sigma * sigma);
-  v->pose_kind = RelativePoseKind::kSim3;
-}
 
 const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRecord& query,
                                                                 size_t query_index) const {
@@ -178,9 +138,9 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
   // the 3D-3D model does not verify.
   const KeyframeRecord& q = QueryWithTriangulatedDepths(query, query_index);
-  VerificationResult v = VerifyPair(q, map, matches, verify_);
-  if (v.pose_kind == RelativePoseKind::kSE3Metric && q.has_depths())
-    AddQueryScale(q, map, matches, &v);
+  VerifyOptions verify = verify_;
+  verify.scale_from_query_depths_min = kMinScalePairs;
+  const VerificationResult v = VerifyPair(q, map, matches, verify);
   return v.pose_kind == RelativePoseKind::kSE3Metric || v.pose_kind == RelativePoseKind::kSim3
              ? v
              : none;

@@ -53,6 +53,9 @@ void VerifyOptions::Check() const {
   SL_CHECK_MSG(std::isfinite(information_min_sigma_px) && information_min_sigma_px > 0,
                "verify.information_min_sigma_px must be > 0 pixels, got {}",
                information_min_sigma_px);
+  SL_CHECK_MSG(scale_from_query_depths_min == 0 || scale_from_query_depths_min >= 3,
+               "verify.scale_from_query_depths_min must be 0 (off) or >= 3, got {}",
+               scale_from_query_depths_min);
   SL_CHECK_MSG(min_inliers >= 5, "verify.min_inliers must be >= 5, got {}", min_inliers);
   SL_CHECK_MSG(min_inlier_ratio >= 0 && min_inlier_ratio <= 1,
                "verify.min_inlier_ratio must be in [0, 1], got {}", min_inlier_ratio);

@@ -1,5 +1,7 @@
 // The Sim(3) estimator of VerifyPair: depths on both sides (3-point RANSAC on the 3D points),
 // with PnP of the match's points when that falls short.
+#include <algorithm>
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -56,7 +58,55 @@ void VerifySim3(const KeyframeRecord& query, const KeyframeRecord& match,
   if (pnp.pose_kind != RelativePoseKind::kNone && pnp.inliers > result->inliers) {
     *result = std::move(pnp);
     result->success = Accepted(options, result->inliers, matches.size());
+    if (options.scale_from_query_depths_min > 0)
+      AddScaleFromQueryDepths(query, match, matches, options, options.scale_from_query_depths_min,
+                              result);
   }
 }
 
 }  // namespace sparseloop::matching_internal
+
+namespace sparseloop {
+
+bool AddScaleFromQueryDepths(const KeyframeRecord& query, const KeyframeRecord& match,
+                             const std::vector<DescriptorMatch>& matches,
+                             const VerifyOptions& options, int min_pairs,
+                             VerificationResult* result) {
+  if (result->pose_kind != RelativePoseKind::kSE3Metric || !query.has_depths() ||
+      !match.has_depths())
+    return false;
+  const Sim3d query_from_match = result->match_from_query.Inverse();
+  std::vector<double> log_ratio;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observed;
+  for (int i : result->inlier_matches) {
+    const DescriptorMatch& m = matches[static_cast<size_t>(i)];
+    const float zm = match.depths[static_cast<size_t>(m.train)];
+    const float zq = query.depths[static_cast<size_t>(m.query)];
+    const CompactKeypoint& kq = query.keypoints[static_cast<size_t>(m.query)];
+    points.push_back(double(zm) * matching_internal::Bearing(match.keypoints[m.train]));
+    observed.emplace_back(kq.x, kq.y);
+    if (zq <= 0 || zm <= 0) continue;
+    const double z = (query_from_match * points.back()).z();
+    if (z > 0) log_ratio.push_back(std::log(z / zq));
+  }
+  if (static_cast<int>(log_ratio.size()) < std::max(1, min_pairs)) return false;
+  std::vector<double> sorted = log_ratio;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  // Robust spread: 1.4826 x the median absolute deviation, floored (a few identical ratios).
+  std::vector<double> dev;
+  for (double r : log_ratio) dev.push_back(std::abs(r - median));
+  std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
+  const double sigma = std::max(1.4826 * dev[dev.size() / 2], 1e-3);
+  result->match_from_query.scale = std::exp(median);
+  // The PnP information again at the scaled pose (its translation columns scale with s).
+  const float focal = std::max(1.0f, 0.5f * (query.focal_px + match.focal_px));
+  result->information = PnpInformationPointsInMatch(points, observed, result->match_from_query,
+                                                    options.InformationOptions(focal));
+  result->information(6, 6) += static_cast<double>(log_ratio.size()) / (sigma * sigma);
+  result->pose_kind = RelativePoseKind::kSim3;
+  return true;
+}
+
+}  // namespace sparseloop

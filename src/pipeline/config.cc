@@ -228,6 +228,10 @@ void AddMatchingKeys(KeyList& k) {
         "fundamental matrix instead of essential (intrinsics unknown)");
   k.Add(v + "use_depths", SL_FIELD(detector.verify.use_depths), "",
         "PnP / Sim(3) when depths exist");
+  k.Add(v + "scale_from_query_depths_min", SL_FIELD(detector.verify.scale_from_query_depths_min),
+        "inliers",
+        "depths on both sides, PnP fallback: its scale from the query's depths when this many "
+        "inliers have one (0 = off, else >= 3)");
   k.Add(v + "information_min_sigma_px", SL_FIELD(detector.verify.information_min_sigma_px), "px",
         "floor of the residual sigma behind a loop's information");
 
@@ -422,6 +426,8 @@ void AddOptimizerKeys(KeyList& k) {
         "PCM: scale sigma per step (Sim(3))");
   k.Add(p + "pcm_free_scale_prior", SL_FIELD(optimizer.pcm.free_scale_prior), "",
         "PCM: test loops with a free scale (se3_metric) with the scale drift prior, not at 1");
+  k.Add(p + "pcm_scale_profile", SL_FIELD(optimizer.pcm.scale_profile), "",
+        "PCM: test cycles on the raw poses rescaled by the scale drift the loops measure (Sim(3))");
   k.Add(p + "pcm_odometry_check", SL_FIELD(optimizer.pcm.odometry_check), "",
         "PCM: also test each loop alone against its own odometry chain");
   k.Add(p + "pcm_odometry_check_confidence", SL_FIELD(optimizer.pcm.odometry_check_confidence),

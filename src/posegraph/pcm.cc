@@ -7,6 +7,8 @@
 #include <vector>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/posegraph/pose_graph.h"
@@ -276,9 +278,86 @@ Eigen::Matrix<double, 7, 1> LoopMarginalVariances(const LoopConstraint& loop) {
   return cov;
 }
 
+// PcmOptions::scale_profile. A loop's scale variance below this is floored: the profile must not
+// follow one loop's depths (a 6-inlier Sim(3)) exactly; log-scale units.
+constexpr double kProfileMinLoopSigma = 0.05;
+// Huber threshold of the profile's loop residuals (sigmas) and the reweighting rounds: a loop
+// whose scale disagrees with the others (a false loop) bends the profile little.
+constexpr double kProfileHuber = 2.0;
+constexpr int kProfileRounds = 5;
+// A cached adjacency stays valid while the profile moves by at most this (log-scale).
+constexpr double kProfileTolerance = 0.01;
+
+// True when the pairs computed with profile `old` still hold under `now`: the same on the
+// vertices both cover (a pair only reads the raw poses up to its own vertices).
+bool SameProfile(const std::vector<double>& old, const std::vector<double>& now) {
+  if (old.empty() != now.empty()) return false;
+  for (size_t k = 0; k < std::min(old.size(), now.size()); ++k)
+    if (std::abs(old[k] - now[k]) > kProfileTolerance) return false;
+  return true;
+}
+
 }  // namespace
 
+std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const {
+  const size_t m = ids_.size();
+  if (!options.scale_profile || type_ != VertexType::kSim3 || m < 2) return {};
+  struct Observation {
+    size_t query, match;
+    double log_scale, weight;
+  };
+  std::vector<Observation> observations;
+  for (const LoopConstraint& l : loops_) {
+    const double variance = LoopMarginalVariances(l)[6];
+    if (!std::isfinite(variance) || !(l.match_from_query.scale > 0)) continue;  // free scale
+    observations.push_back({Index(l.query_id), Index(l.match_id),
+                            std::log(l.match_from_query.scale),
+                            1.0 / std::max(variance, kProfileMinLoopSigma * kProfileMinLoopSigma)});
+  }
+  if (observations.empty()) return {};
+  // Unknowns l_k = log of the factor taking raw units at vertex k to those at vertex 0. Each
+  // loop: l_query - l_match = log s (its Sim(3) maps query units to match units); each step a
+  // random walk of step_scale_sigma; l_0 = 0.
+  const double step_weight = 1.0 / (options.step_scale_sigma * options.step_scale_sigma);
+  std::vector<double> robust(observations.size(), 1.0);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m));
+  for (int round = 0; round < kProfileRounds; ++round) {
+    std::vector<Eigen::Triplet<double>> h;
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m));
+    auto add_difference = [&](size_t i, size_t j, double w, double y) {  // w (x_i - x_j - y)^2
+      const auto ii = static_cast<Eigen::Index>(i), jj = static_cast<Eigen::Index>(j);
+      h.emplace_back(ii, ii, w);
+      h.emplace_back(jj, jj, w);
+      h.emplace_back(ii, jj, -w);
+      h.emplace_back(jj, ii, -w);
+      g[ii] += w * y;
+      g[jj] -= w * y;
+    };
+    h.emplace_back(0, 0, 1e6 * step_weight);  // the gauge
+    for (size_t k = 1; k < m; ++k) add_difference(k, k - 1, step_weight, 0.0);
+    for (size_t i = 0; i < observations.size(); ++i) {
+      const Observation& o = observations[i];
+      if (o.query != o.match) add_difference(o.query, o.match, o.weight * robust[i], o.log_scale);
+    }
+    Eigen::SparseMatrix<double> hessian(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+    hessian.setFromTriplets(h.begin(), h.end());
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian);
+    if (ldlt.info() != Eigen::Success) return {};
+    x = ldlt.solve(g);
+    for (size_t i = 0; i < observations.size(); ++i) {
+      const Observation& o = observations[i];
+      const double r = std::abs(x[static_cast<Eigen::Index>(o.query)] -
+                                x[static_cast<Eigen::Index>(o.match)] - o.log_scale) *
+                       std::sqrt(o.weight);
+      robust[i] = r <= kProfileHuber ? 1.0 : kProfileHuber / r;
+    }
+  }
+  if (!x.allFinite()) return {};
+  return std::vector<double>(x.data(), x.data() + x.size());
+}
+
 void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
+                                   const std::vector<double>& log_scale,
                                    std::vector<std::vector<bool>>* adj,
                                    OdometryResiduals* odometry) const {
   const size_t n = loops_.size();
@@ -294,9 +373,25 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   const double ft2 = options.step_translation_fraction * options.step_translation_fraction;
   const double sr2 = options.step_rotation_sigma_rad * options.step_rotation_sigma_rad;
   const double ss2 = sim3 ? options.step_scale_sigma * options.step_scale_sigma : 0.0;
-  std::vector<double> step_t2(m, 0.0), step_r2(m, sr2);
+  // PcmOptions::scale_profile: the raw poses with each step in the units of the first vertex
+  // (the loops follow below), or the raw poses as they are.
+  const bool rescale = sim3 && log_scale.size() == m;
+  std::vector<double> step_factor(m, 1.0);  // raw units at step k -> the poses' units
+  std::vector<Sim3d> rescaled;
+  if (rescale) {
+    rescaled = raw_poses_;
+    for (size_t k = 1; k < m; ++k) {
+      step_factor[k] = std::exp(0.5 * (log_scale[k - 1] + log_scale[k]));
+      rescaled[k].translation =
+          rescaled[k - 1].translation +
+          step_factor[k] * (raw_poses_[k].translation - raw_poses_[k - 1].translation);
+    }
+  }
+  const std::vector<Sim3d>& poses = rescale ? rescaled : raw_poses_;
+  std::vector<double> step_t2(m, 0.0), step_r2(m, sr2), raw_step_t2(m, 0.0);
   for (size_t k = 1; k < m; ++k) {
-    step_t2[k] = ft2 * (raw_poses_[k].translation - raw_poses_[k - 1].translation).squaredNorm();
+    raw_step_t2[k] =
+        ft2 * (raw_poses_[k].translation - raw_poses_[k - 1].translation).squaredNorm();
   }
   for (const PoseGraphEdge& e : edges_) {
     if (!e.information_from_caller) continue;
@@ -304,14 +399,18 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     if (std::max(a, b) != std::min(a, b) + 1) continue;  // not a step
     const Eigen::Matrix<double, 6, 6> cov = e.information.topLeftCorner<6, 6>().inverse();
     const size_t k = std::max(a, b);
-    step_t2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.topLeftCorner<3, 3>())
-                     .eigenvalues()
-                     .maxCoeff();
+    raw_step_t2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.topLeftCorner<3, 3>())
+                         .eigenvalues()
+                         .maxCoeff();
     step_r2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.bottomRightCorner<3, 3>())
                      .eigenvalues()
                      .maxCoeff();
   }
-  const ChainStatistics chains(raw_poses_, step_t2, step_r2, sr2, ss2);
+  for (size_t k = 1; k < m; ++k) step_t2[k] = step_factor[k] * step_factor[k] * raw_step_t2[k];
+  // The odometry test reads the raw poses (its own calibration holds the scale drift), the
+  // pairwise test the rescaled ones.
+  const ChainStatistics raw_chains(raw_poses_, raw_step_t2, step_r2, sr2, ss2);
+  const ChainStatistics chains(poses, step_t2, step_r2, sr2, ss2);
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
   // The single-loop odometry test: the loop's residual at the raw poses against zero, with
@@ -329,7 +428,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     const Matrix7d info7 = LoopEffectiveInformation(l);
     Eigen::Matrix<double, 6, 6> info = info7.topLeftCorner<6, 6>();
     if (info7(6, 6) > 0) info -= info7.block<6, 1>(0, 6) * info7.block<1, 6>(6, 0) / info7(6, 6);
-    const Eigen::Matrix<double, 7, 1> chain = chains.Covariance(m, q);
+    const Eigen::Matrix<double, 7, 1> chain = raw_chains.Covariance(m, q);
     const Eigen::Matrix<double, 6, 6> c =
         chain.head<6>().cwiseMax(1e-12).cwiseInverse().asDiagonal();
     const Eigen::Matrix<double, 6, 6> weight = c - c * (info + c).ldlt().solve(c);
@@ -341,21 +440,36 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   // Only pairs with at least one loop in [from, n): the others were computed before and cannot
   // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
   // raw poses up to its own vertices).
+  // Each loop in the poses' units (PcmOptions::scale_profile: a query unit is e^l_q, a match
+  // unit e^l_m units of vertex 0) with its marginal variances (the translation's are in query
+  // units: the tangent of a right perturbation).
+  std::vector<Sim3d> z(n);
+  std::vector<Eigen::Matrix<double, 7, 1>> z_cov(n);
+  for (size_t k = 0; k < n; ++k) {
+    z[k] = loops_[k].match_from_query;
+    z_cov[k] = LoopMarginalVariances(loops_[k]);
+    if (!rescale) continue;
+    const double lq = log_scale[Index(loops_[k].query_id)];
+    const double lm = log_scale[Index(loops_[k].match_id)];
+    // A loop that leaves its scale free (PnP: it says 1) takes the profile's, 1 in these units.
+    z[k].scale = std::isfinite(z_cov[k][6]) ? z[k].scale * std::exp(lm - lq) : 1.0;
+    z[k].translation *= std::exp(lm);
+    z_cov[k].head<3>() *= std::exp(2.0 * lq);
+  }
   for (size_t a = 0; a < n; ++a) {
     const LoopConstraint& la = loops_[a];
     const size_t qa = Index(la.query_id), ma = Index(la.match_id);
-    const Eigen::Matrix<double, 7, 1> cov_a = LoopMarginalVariances(la);
+    const Eigen::Matrix<double, 7, 1>& cov_a = z_cov[a];
     for (size_t b = std::max(a + 1, from); b < n; ++b) {
       const LoopConstraint& lb = loops_[b];
       const size_t qb = Index(lb.query_id), mb = Index(lb.match_id);
       // ma_from_qa * qa_from_qb * qb_from_mb * mb_from_ma == identity for consistent loops.
-      const Sim3d left = la.match_from_query * (raw_poses_[qa].Inverse() * raw_poses_[qb]);
-      const Sim3d right =
-          lb.match_from_query.Inverse() * (raw_poses_[mb].Inverse() * raw_poses_[ma]);
+      const Sim3d left = z[a] * (poses[qa].Inverse() * poses[qb]);
+      const Sim3d right = z[b].Inverse() * (poses[mb].Inverse() * poses[ma]);
       const Sim3d cycle = left * right;
       Vector7d e = cycle.Log();
       if (!sim3) e[6] = 0.0;
-      const Eigen::Matrix<double, 7, 1> cov_b = LoopMarginalVariances(lb);
+      const Eigen::Matrix<double, 7, 1>& cov_b = z_cov[b];
       const Eigen::Matrix<double, 7, 1> cov =
           cov_a + cov_b + chains.Covariance(qa, qb) + chains.Covariance(ma, mb);
       // PcmOptions::free_scale_prior: a loop that leaves its relative scale free (PnP against
@@ -366,10 +480,9 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
       std::vector<std::pair<Eigen::Vector3d, double>> free;
       if (options.free_scale_prior && sim3 && std::isinf(cov_a[6])) {
         // exp(sigma_a) scales q_a_from_m_a through the cycle: m_a seen from q_a.
-        const Sim3d rest = (raw_poses_[qa].Inverse() * raw_poses_[qb]) * right;
-        free.emplace_back(
-            la.match_from_query.scale * (la.match_from_query.rotation * rest.translation),
-            chains.Covariance(ma, qa)[6]);
+        const Sim3d rest = (poses[qa].Inverse() * poses[qb]) * right;
+        free.emplace_back(z[a].scale * (z[a].rotation * rest.translation),
+                          chains.Covariance(ma, qa)[6]);
       }
       if (options.free_scale_prior && sim3 && std::isinf(cov_b[6])) {
         // exp(-sigma_b) scales q_b_from_m_a (m_a seen from q_b: the match chain).
@@ -452,7 +565,8 @@ bool SameConsistencyTest(const PcmOptions& a, const PcmOptions& b) {
          a.step_rotation_sigma_rad == b.step_rotation_sigma_rad &&
          a.step_scale_sigma == b.step_scale_sigma && a.free_scale_prior == b.free_scale_prior &&
          a.odometry_check == b.odometry_check &&
-         a.odometry_check_confidence == b.odometry_check_confidence;
+         a.odometry_check_confidence == b.odometry_check_confidence &&
+         a.scale_profile == b.scale_profile;
 }
 
 }  // namespace
@@ -485,7 +599,7 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
   if (loops_.empty()) return {};
   std::vector<std::vector<bool>> adj;
   OdometryResiduals odometry;
-  ExtendPcmAdjacency(options, 0, &adj, &odometry);
+  ExtendPcmAdjacency(options, 0, PcmScaleProfile(options), &adj, &odometry);
   return MaximumClique(adj, PassOdometryTest(options, odometry.chi2, odometry.dof), loops_,
                        options);
 }
@@ -498,7 +612,17 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
     pcm_cache_.valid = true;
     pcm_cache_.options = options;
   }
-  ExtendPcmAdjacency(options, pcm_cache_.loops, &pcm_cache_.adj, &pcm_cache_.odometry);
+  // PcmOptions::scale_profile: the new pairs use today's profile; when it has moved by more than
+  // kProfileTolerance from the one the cached pairs were computed with, every pair is recomputed.
+  const std::vector<double> profile = PcmScaleProfile(options);
+  std::vector<double>& base = pcm_cache_.log_scale;
+  size_t from = pcm_cache_.loops;
+  if (!SameProfile(base, profile)) {
+    from = 0;
+    base = profile;
+  }
+  for (size_t k = base.size(); k < profile.size(); ++k) base.push_back(profile[k]);
+  ExtendPcmAdjacency(options, from, profile, &pcm_cache_.adj, &pcm_cache_.odometry);
   pcm_cache_.loops = loops_.size();
   const OdometryResiduals& odometry = pcm_cache_.odometry;
   return MaximumClique(pcm_cache_.adj, PassOdometryTest(options, odometry.chi2, odometry.dof),

@@ -609,19 +609,76 @@ TEST(Verification, Sim3WithDepthsOnBothSidesCarriesScale) {
 // Depths on both sides, but the query's are wrong (a bad depth map; here each multiplied by a
 // random factor in [0.5, 2]): no 3-point Sim(3) verifies, and the detector falls back to PnP of
 // the match's 3D points against the query's observations, which recovers the pose. The same
-// scene with the query's depths intact takes the Sim(3) path (previous test).
+// scene with the query's depths intact takes the Sim(3) path (previous test). The scale from the
+// query's depths (AddScaleFromQueryDepths) is then weak: its information says so.
 TEST(Verification, BadDepthsOnOneSideFallBackToPnP) {
   Scene s = MakeScene(27, 60, 10, true, true);
   auto rng = test::SeededRng(28);
   std::uniform_real_distribution<double> log_factor(std::log(0.5), std::log(2.0));
   for (float& d : s.query.depths) d *= static_cast<float>(std::exp(log_factor(rng)));
+  VerifyOptions scale_one;
+  scale_one.scale_from_query_depths_min = 0;
+  for (const VerifyOptions& o : {scale_one, VerifyOptions{}}) {
+    const auto v = VerifyPair(s.query, s.match, s.matches, o);
+    ASSERT_TRUE(v.success);
+    EXPECT_EQ(v.method, VerificationMethod::kPnP);
+    EXPECT_GE(v.inliers, 48);
+    EXPECT_LT(RotationAngle(v.match_from_query.rotation, s.match_from_query.rotation), 1e-3);
+    EXPECT_LT((v.match_from_query.translation - s.match_from_query.translation).norm(), 1e-2);
+    if (o.scale_from_query_depths_min == 0) {
+      EXPECT_EQ(v.pose_kind, RelativePoseKind::kSE3Metric);
+      EXPECT_EQ(v.match_from_query.scale, 1.0);
+      EXPECT_LT(v.information(6, 6), 1e-12 * v.information.trace());  // PnP: the scale is free
+    } else {
+      EXPECT_EQ(v.pose_kind, RelativePoseKind::kSim3);
+      // True scale 1; factors spread over [0.5, 2]: a sigma of log s of 0.05-0.2, and the
+      // estimate within 3 of them.
+      const double sigma = 1 / std::sqrt(v.information(6, 6));
+      EXPECT_GT(sigma, 0.05);
+      EXPECT_LT(sigma, 0.2);
+      EXPECT_LT(std::abs(std::log(v.match_from_query.scale)), 3 * sigma);
+    }
+  }
+}
+
+// Scale drift between the two places (query depths in units of 0.5 match units) and query depths
+// with 30 % noise (a vSLAM's semi-dense depths far from its baseline): the 3-point Sim(3) RANSAC
+// does not verify (the premise), PnP does, and the query's depths give the relative scale: the loop
+// is a Sim(3) with scale 0.5, not a PnP pose at scale 1 (a 100 % error PCM would have to reject).
+// Below scale_from_query_depths_min query depths the PnP pose is kept as it was.
+TEST(Verification, PnPFallbackTakesTheScaleFromTheQueryDepths) {
+  Scene s = MakeScene(29, 60, 10, true, true, 0.5);
+  auto rng = test::SeededRng(30);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  for (float& d : s.query.depths) d *= static_cast<float>(std::exp(noise(rng)));
   const auto v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
   ASSERT_TRUE(v.success);
-  EXPECT_EQ(v.method, VerificationMethod::kPnP);
-  EXPECT_EQ(v.pose_kind, RelativePoseKind::kSE3Metric);
-  EXPECT_GE(v.inliers, 48);
+  ASSERT_EQ(v.method, VerificationMethod::kPnP);  // premise: no Sim(3) from these depths
+  EXPECT_EQ(v.pose_kind, RelativePoseKind::kSim3);
+  const double sigma = 1 / std::sqrt(v.information(6, 6));
+  EXPECT_LT(sigma, 0.08);  // 50 inliers with 30 % noise: about 0.3 / sqrt(50) = 0.04
+  EXPECT_LT(std::abs(std::log(v.match_from_query.scale / 0.5)), 3 * sigma);
   EXPECT_LT(RotationAngle(v.match_from_query.rotation, s.match_from_query.rotation), 1e-3);
   EXPECT_LT((v.match_from_query.translation - s.match_from_query.translation).norm(), 1e-2);
+  // Rotation and translation information as PnP's: the same pose, rescaled columns aside.
+  VerifyOptions scale_one;
+  scale_one.scale_from_query_depths_min = 0;
+  const auto pnp = VerifyPair(s.query, s.match, s.matches, scale_one);
+  ASSERT_EQ(pnp.pose_kind, RelativePoseKind::kSE3Metric);
+  EXPECT_EQ(pnp.inliers, v.inliers);
+  const double rotation_info = pnp.information.block<3, 3>(3, 3).trace();
+  const double rotation_info_scaled = v.information.block<3, 3>(3, 3).trace();
+  EXPECT_NEAR(rotation_info_scaled, rotation_info, 1e-6 * rotation_info);
+  // Only 4 query depths left among the matches: fewer than the default 5, scale 1 as before.
+  Scene few = s;
+  for (size_t i = 4; i < few.query.depths.size(); ++i) few.query.depths[i] = 0;
+  const auto kept = VerifyPair(few.query, few.match, few.matches, VerifyOptions{});
+  ASSERT_TRUE(kept.success);
+  EXPECT_EQ(kept.pose_kind, RelativePoseKind::kSE3Metric);
+  EXPECT_EQ(kept.match_from_query.scale, 1.0);
+  VerifyOptions bad;
+  bad.scale_from_query_depths_min = 2;  // a median of two is no estimate
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
 }  // namespace

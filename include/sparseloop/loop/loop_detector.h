@@ -562,9 +562,6 @@ class LoopDetector {
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size
   // of the map.
-  // A PnP loop whose query has triangulated depths: the relative scale from them (kSim3).
-  void AddQueryScale(const KeyframeRecord& query, const KeyframeRecord& map,
-                     const std::vector<DescriptorMatch>& matches, VerificationResult* v) const;
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
                                            int* map_points) const;
   // `query` with depths triangulated from the keyframes before it (raw poses; unchanged when it

@@ -36,7 +36,11 @@ struct VerifyOptions {
   double min_inlier_ratio = 0.0;  // inliers / matches below this fail, ratio in [0, 1]
   bool use_fundamental = false;   // intrinsics unknown: fundamental matrix instead of essential
   bool use_depths = true;         // use PnP / Sim(3) when depths exist
-  uint64_t seed = 42;             // RNG seed (cv::theRNG and the Sim(3) RANSAC)
+  // Depths on both sides and the Sim(3) RANSAC falls short: the PnP fallback's relative scale is
+  // measured from the query's depths (AddScaleFromQueryDepths) when at least this many of its
+  // inliers have one; 0 leaves the PnP pose at scale 1 (kSE3Metric), count.
+  int scale_from_query_depths_min = 5;
+  uint64_t seed = 42;  // RNG seed (cv::theRNG and the Sim(3) RANSAC)
   // Floor of the residual sigma behind VerificationResult::information, pixels: a handful of
   // near-perfect inliers must not claim a sub-pixel pose (ORB keypoints are localised to about
   // half a pixel at the finest level).
@@ -66,6 +70,21 @@ struct VerificationResult {
 VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord& match,
                               const std::vector<DescriptorMatch>& matches,
                               const VerifyOptions& options);
+
+// A PnP pose of the match's 3D points against the query's observations (kSE3Metric, scale 1)
+// fixes the query camera in match units. Where the query has depths of its own (query units),
+// the same inliers give the relative scale directly: s_i = z(query_from_match * P_i) / z_query,i,
+// robustly the median; the pose becomes kSim3 with scale s and information: the PnP information
+// at the scaled pose plus n / var(log s_i) on the scale (var from 1.4826 x the MAD, floored at
+// 1e-3). A 3-point Sim(3) RANSAC between two noisy clouds rarely passes a 2 px check in both
+// cameras; this needs no 3D-3D hypothesis. With scale 1 instead, a loop under scale drift carries
+// the drift between its two places as an error (10-40 % at 4x the renders' drift) and PCM rejects
+// it. Returns false and leaves *result unchanged when fewer than `min_pairs` inliers have both
+// depths or *result is not a kSE3Metric pose.
+bool AddScaleFromQueryDepths(const KeyframeRecord& query, const KeyframeRecord& match,
+                             const std::vector<DescriptorMatch>& matches,
+                             const VerifyOptions& options, int min_pairs,
+                             VerificationResult* result);
 
 // Other two-view poses the same matches support, for a pair VerifyPair verified by the essential
 // matrix (no depths): a homography is fitted to the matches (RANSAC, seeded) and each of its

@@ -122,6 +122,16 @@ struct PcmOptions {
   // false loops). docs/POSEGRAPH.md, "Each loop against its odometry".
   bool odometry_check = true;
   double odometry_check_confidence = 0.99;  // chi2 quantile of the single-loop test
+  // Sim(3) graphs: the pairwise test on the raw trajectory rescaled by its scale drift as the
+  // loops measure it. Each loop with a measured scale s says log-scale(query) - log-scale(match)
+  // = log s; a robust (Huber) least-squares profile over the vertices, a random walk of
+  // step_scale_sigma per step between them, gives every raw step its scale, and the cycles of
+  // two loops are composed on the rescaled raw poses with the loops in the same units. Without
+  // it a long chain's raw translation carries the scale change along it (a render's or a real
+  // monocular drift has a bias the random walk does not hold: 4x the renders' drift changes the
+  // scale 6x over street00), and two true loops far apart in time miss each other by tens of
+  // metres: PCM kept one group and rejected the other (docs/POSEGRAPH.md, "The scale profile").
+  bool scale_profile = true;
   void Check() const;
 };
 
@@ -304,8 +314,13 @@ class PoseGraph {
     std::vector<double> chi2;
     std::vector<int> dof;
   };
+  // `log_scale`: PcmOptions::scale_profile's profile (one entry per vertex), or empty.
   void ExtendPcmAdjacency(const PcmOptions& options, size_t from,
-                          std::vector<std::vector<bool>>* adj, OdometryResiduals* odometry) const;
+                          const std::vector<double>& log_scale, std::vector<std::vector<bool>>* adj,
+                          OdometryResiduals* odometry) const;
+  // PcmOptions::scale_profile: log of the factor that takes raw units at each vertex to raw units
+  // at the first (0 there); empty when off or the graph is not Sim(3).
+  std::vector<double> PcmScaleProfile(const PcmOptions& options) const;
 
   struct PcmCache {
     bool valid = false;
@@ -313,6 +328,7 @@ class PoseGraph {
     size_t loops = 0;  // loops covered by adj
     std::vector<std::vector<bool>> adj;
     OdometryResiduals odometry;
+    std::vector<double> log_scale;  // the profile the cached pairs were computed with
   };
   PcmCache pcm_cache_;
 
