@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -307,7 +308,13 @@ bool SameProfile(const std::vector<double>& old, const std::vector<double>& now)
 
 }  // namespace
 
-std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const {
+void PoseGraph::PcmLoopVariances(std::vector<Vector7d>* variances) const {
+  for (size_t k = variances->size(); k < loops_.size(); ++k)
+    variances->push_back(LoopMarginalVariances(loops_[k]));
+}
+
+std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options,
+                                               const std::vector<Vector7d>& variances) const {
   const size_t m = ids_.size();
   if (!options.scale_profile || type_ != VertexType::kSim3 || m < 2) return {};
   struct Observation {
@@ -315,8 +322,9 @@ std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const 
     double log_scale, weight;
   };
   std::vector<Observation> observations;
-  for (const LoopConstraint& l : loops_) {
-    const double variance = LoopMarginalVariances(l)[6];
+  for (size_t k = 0; k < loops_.size(); ++k) {
+    const LoopConstraint& l = loops_[k];
+    const double variance = variances[k][6];
     if (!std::isfinite(variance) || !(l.match_from_query.scale > 0)) continue;  // free scale
     observations.push_back({Index(l.query_id), Index(l.match_id),
                             std::log(l.match_from_query.scale),
@@ -336,10 +344,12 @@ std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const 
   }
   std::sort(keys.begin(), keys.end());
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  const auto key_of = [&](size_t vertex) {
-    return static_cast<Eigen::Index>(std::lower_bound(keys.begin(), keys.end(), vertex) -
-                                     keys.begin());
-  };
+  for (Observation& o : observations) {  // vertex indices -> indices into keys
+    o.query =
+        static_cast<size_t>(std::lower_bound(keys.begin(), keys.end(), o.query) - keys.begin());
+    o.match =
+        static_cast<size_t>(std::lower_bound(keys.begin(), keys.end(), o.match) - keys.begin());
+  }
   const auto nk = static_cast<Eigen::Index>(keys.size());
   const double step_variance = options.step_scale_sigma * options.step_scale_sigma;
   std::vector<double> robust(observations.size(), 1.0);
@@ -364,7 +374,8 @@ std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const 
     for (size_t i = 0; i < observations.size(); ++i) {
       const Observation& o = observations[i];
       if (o.query != o.match)
-        add_difference(key_of(o.query), key_of(o.match), o.weight * robust[i], o.log_scale);
+        add_difference(static_cast<Eigen::Index>(o.query), static_cast<Eigen::Index>(o.match),
+                       o.weight * robust[i], o.log_scale);
     }
     Eigen::SparseMatrix<double> hessian(nk, nk);
     hessian.setFromTriplets(h.begin(), h.end());
@@ -373,8 +384,9 @@ std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const 
     x = ldlt.solve(g);
     for (size_t i = 0; i < observations.size(); ++i) {
       const Observation& o = observations[i];
-      const double r =
-          std::abs(x[key_of(o.query)] - x[key_of(o.match)] - o.log_scale) * std::sqrt(o.weight);
+      const double r = std::abs(x[static_cast<Eigen::Index>(o.query)] -
+                                x[static_cast<Eigen::Index>(o.match)] - o.log_scale) *
+                       std::sqrt(o.weight);
       robust[i] = r <= kProfileHuber ? 1.0 : kProfileHuber / r;
     }
   }
@@ -390,6 +402,7 @@ std::vector<double> PoseGraph::PcmScaleProfile(const PcmOptions& options) const 
 }
 
 void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
+                                   const std::vector<Vector7d>& variances,
                                    const std::vector<double>& log_scale,
                                    std::vector<std::vector<bool>>* adj,
                                    OdometryResiduals* odometry) const {
@@ -409,22 +422,9 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   // PcmOptions::scale_profile: the raw poses with each step in the units of the first vertex
   // (the loops follow below), or the raw poses as they are.
   const bool rescale = sim3 && log_scale.size() == m;
-  std::vector<double> step_factor(m, 1.0);  // raw units at step k -> the poses' units
-  std::vector<Sim3d> rescaled;
-  if (rescale) {
-    rescaled = raw_poses_;
-    for (size_t k = 1; k < m; ++k) {
-      step_factor[k] = std::exp(0.5 * (log_scale[k - 1] + log_scale[k]));
-      rescaled[k].translation =
-          rescaled[k - 1].translation +
-          step_factor[k] * (raw_poses_[k].translation - raw_poses_[k - 1].translation);
-    }
-  }
-  const std::vector<Sim3d>& poses = rescale ? rescaled : raw_poses_;
-  std::vector<double> step_t2(m, 0.0), step_r2(m, sr2), raw_step_t2(m, 0.0);
+  std::vector<double> step_t2(m, 0.0), step_r2(m, sr2);
   for (size_t k = 1; k < m; ++k) {
-    raw_step_t2[k] =
-        ft2 * (raw_poses_[k].translation - raw_poses_[k - 1].translation).squaredNorm();
+    step_t2[k] = ft2 * (raw_poses_[k].translation - raw_poses_[k - 1].translation).squaredNorm();
   }
   for (const PoseGraphEdge& e : edges_) {
     if (!e.information_from_caller) continue;
@@ -432,18 +432,33 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     if (std::max(a, b) != std::min(a, b) + 1) continue;  // not a step
     const Eigen::Matrix<double, 6, 6> cov = e.information.topLeftCorner<6, 6>().inverse();
     const size_t k = std::max(a, b);
-    raw_step_t2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.topLeftCorner<3, 3>())
-                         .eigenvalues()
-                         .maxCoeff();
+    step_t2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.topLeftCorner<3, 3>())
+                     .eigenvalues()
+                     .maxCoeff();
     step_r2[k] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov.bottomRightCorner<3, 3>())
                      .eigenvalues()
                      .maxCoeff();
   }
-  for (size_t k = 1; k < m; ++k) step_t2[k] = step_factor[k] * step_factor[k] * raw_step_t2[k];
-  // The odometry test reads the raw poses (its own calibration holds the scale drift), the
-  // pairwise test the rescaled ones.
-  const ChainStatistics raw_chains(raw_poses_, raw_step_t2, step_r2, sr2, ss2);
-  const ChainStatistics chains(poses, step_t2, step_r2, sr2, ss2);
+  // The odometry test reads the raw poses (its own calibration holds the scale drift); the
+  // pairwise test reads them rescaled by the profile, each step's translation (and its variance)
+  // in the units of the first vertex, when there is one.
+  const ChainStatistics raw_chains(raw_poses_, step_t2, step_r2, sr2, ss2);
+  std::vector<Sim3d> rescaled;
+  std::vector<double> rescaled_t2;
+  std::optional<ChainStatistics> rescaled_chains;
+  if (rescale) {
+    rescaled = raw_poses_;
+    rescaled_t2 = step_t2;
+    for (size_t k = 1; k < m; ++k) {
+      const double f = std::exp(0.5 * (log_scale[k - 1] + log_scale[k]));
+      rescaled[k].translation = rescaled[k - 1].translation +
+                                f * (raw_poses_[k].translation - raw_poses_[k - 1].translation);
+      rescaled_t2[k] *= f * f;
+    }
+    rescaled_chains.emplace(rescaled, rescaled_t2, step_r2, sr2, ss2);
+  }
+  const std::vector<Sim3d>& poses = rescale ? rescaled : raw_poses_;
+  const ChainStatistics& chains = rescale ? *rescaled_chains : raw_chains;
   std::vector<double> thresholds(8, 0.0);
   for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
   // The single-loop odometry test: the loop's residual at the raw poses against zero, with
@@ -470,9 +485,6 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     odometry->chi2[k] = std::isnan(chi2) ? std::numeric_limits<double>::infinity() : chi2;
     odometry->dof[k] = ObservableDof<6>(info);
   }
-  // Only pairs with at least one loop in [from, n): the others were computed before and cannot
-  // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
-  // raw poses up to its own vertices).
   // Each loop in the poses' units (PcmOptions::scale_profile: a query unit is e^l_q, a match
   // unit e^l_m units of vertex 0) with its marginal variances (the translation's are in query
   // units: the tangent of a right perturbation).
@@ -480,7 +492,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   std::vector<Eigen::Matrix<double, 7, 1>> z_cov(n);
   for (size_t k = 0; k < n; ++k) {
     z[k] = loops_[k].match_from_query;
-    z_cov[k] = LoopMarginalVariances(loops_[k]);
+    z_cov[k] = variances[k];
     if (!rescale) continue;
     const double lq = log_scale[Index(loops_[k].query_id)];
     const double lm = log_scale[Index(loops_[k].match_id)];
@@ -489,6 +501,9 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
     z[k].translation *= std::exp(lm);
     z_cov[k].head<3>() *= std::exp(2.0 * lq);
   }
+  // Only pairs with at least one loop in [from, n): the others were computed before and cannot
+  // have changed (loops and raw poses are append-only, the chain statistics of a pair only read
+  // raw poses up to its own vertices; with the profile, see PcmConsistentLoopsIncremental).
   for (size_t a = 0; a < n; ++a) {
     const LoopConstraint& la = loops_[a];
     const size_t qa = Index(la.query_id), ma = Index(la.match_id);
@@ -632,7 +647,9 @@ std::vector<size_t> PoseGraph::PcmConsistentLoops(const PcmOptions& options) con
   if (loops_.empty()) return {};
   std::vector<std::vector<bool>> adj;
   OdometryResiduals odometry;
-  ExtendPcmAdjacency(options, 0, PcmScaleProfile(options), &adj, &odometry);
+  std::vector<Vector7d> variances;
+  PcmLoopVariances(&variances);
+  ExtendPcmAdjacency(options, 0, variances, PcmScaleProfile(options, variances), &adj, &odometry);
   return MaximumClique(adj, PassOdometryTest(options, odometry.chi2, odometry.dof), loops_,
                        options);
 }
@@ -647,7 +664,8 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
   }
   // PcmOptions::scale_profile: the new pairs use today's profile; when it has moved by more than
   // kProfileTolerance from the one the cached pairs were computed with, every pair is recomputed.
-  const std::vector<double> profile = PcmScaleProfile(options);
+  PcmLoopVariances(&pcm_cache_.variances);
+  const std::vector<double> profile = PcmScaleProfile(options, pcm_cache_.variances);
   std::vector<double>& base = pcm_cache_.log_scale;
   size_t from = pcm_cache_.loops;
   if (!SameProfile(base, profile)) {
@@ -655,7 +673,8 @@ std::vector<size_t> PoseGraph::PcmConsistentLoopsIncremental(const PcmOptions& o
     base = profile;
   }
   for (size_t k = base.size(); k < profile.size(); ++k) base.push_back(profile[k]);
-  ExtendPcmAdjacency(options, from, profile, &pcm_cache_.adj, &pcm_cache_.odometry);
+  ExtendPcmAdjacency(options, from, pcm_cache_.variances, profile, &pcm_cache_.adj,
+                     &pcm_cache_.odometry);
   pcm_cache_.loops = loops_.size();
   const OdometryResiduals& odometry = pcm_cache_.odometry;
   return MaximumClique(pcm_cache_.adj, PassOdometryTest(options, odometry.chi2, odometry.dof),

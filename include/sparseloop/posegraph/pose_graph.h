@@ -314,13 +314,18 @@ class PoseGraph {
     std::vector<double> chi2;
     std::vector<int> dof;
   };
-  // `log_scale`: PcmOptions::scale_profile's profile (one entry per vertex), or empty.
+  // `variances`: each loop's marginal variances (PcmLoopVariances); `log_scale`:
+  // PcmOptions::scale_profile's profile (one entry per vertex), or empty.
   void ExtendPcmAdjacency(const PcmOptions& options, size_t from,
+                          const std::vector<Vector7d>& variances,
                           const std::vector<double>& log_scale, std::vector<std::vector<bool>>* adj,
                           OdometryResiduals* odometry) const;
+  // Appends the marginal variances of loops_[variances->size()..] (loops are append-only).
+  void PcmLoopVariances(std::vector<Vector7d>* variances) const;
   // PcmOptions::scale_profile: log of the factor that takes raw units at each vertex to raw units
   // at the first (0 there); empty when off or the graph is not Sim(3).
-  std::vector<double> PcmScaleProfile(const PcmOptions& options) const;
+  std::vector<double> PcmScaleProfile(const PcmOptions& options,
+                                      const std::vector<Vector7d>& variances) const;
 
   struct PcmCache {
     bool valid = false;
@@ -328,7 +333,8 @@ class PoseGraph {
     size_t loops = 0;  // loops covered by adj
     std::vector<std::vector<bool>> adj;
     OdometryResiduals odometry;
-    std::vector<double> log_scale;  // the profile the cached pairs were computed with
+    std::vector<double> log_scale;    // the profile the cached pairs were computed with
+    std::vector<Vector7d> variances;  // each loop's marginal variances
   };
   PcmCache pcm_cache_;
 
