@@ -30,15 +30,44 @@ bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query
 }
 
 size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
-  const double floor = options_.overlap_match_factor * options_.EffectiveMinMatches();
-  double threshold = floor;
-  size_t start = exclude_end;  // keyframes [start, query) are excluded
+  // Keyframes still in overlap_buffer_ are matched with the query's first overlap_features, at
+  // the floors of a record of that size; older ones (or without the buffer) with their stored
+  // records, at the record's floors.
+  const bool buffered = OverlapBufferUsed(query);
+  const std::span<const Descriptor> probe(
+      query.descriptors.data(),
+      std::min(query.size(), static_cast<size_t>(std::max(0, options_.overlap_features))));
+  struct Count {
+    double matches;
+    bool from_buffer;
+  };
+  auto count = [&](size_t k) -> Count {
+    if (buffered) {
+      const auto it = std::lower_bound(overlap_buffer_.begin(), overlap_buffer_.end(), k,
+                                       [](const auto& e, size_t i) { return e.first < i; });
+      if (it != overlap_buffer_.end() && it->first == k)
+        return {static_cast<double>(MatchDescriptors(probe, it->second, options_.match).size()),
+                true};
+    }
+    return {static_cast<double>(MatchQuery(query, records_[k]).size()), false};
+  };
+  const double record_floor = options_.overlap_match_factor * options_.EffectiveMinMatches();
+  const double buffer_floor = options_.overlap_match_factor * options_.min_matches;
+  double threshold = record_floor;
+  std::optional<bool> counted_from_buffer;  // the kind of count `threshold` is for
+  size_t start = exclude_end;               // keyframes [start, query) are excluded
   int misses = 0;
   int walked = 0;
   for (size_t k = exclude_end; k-- > 0 && walked < options_.overlap_max_walk; ++walked) {
-    const double matches = static_cast<double>(MatchQuery(query, records_[k]).size());
-    if (walked == 0) threshold = std::max(floor, options_.overlap_relative * matches);
-    if (matches >= threshold) {
+    const Count c = count(k);
+    // The first keyframe walked, or the first one past the buffer: the overlap decays from its
+    // count (counts of the two kinds are of different record sizes).
+    if (counted_from_buffer != c.from_buffer) {
+      counted_from_buffer = c.from_buffer;
+      threshold = std::max(c.from_buffer ? buffer_floor : record_floor,
+                           options_.overlap_relative * c.matches);
+    }
+    if (c.matches >= threshold) {
       start = k;
       misses = 0;
     } else if (++misses >= options_.overlap_gap) {
@@ -337,7 +366,10 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
       status = trial_status;
       have_best = true;
     }
-    if (status == LoopStatus::kDetected) break;
+    // With a pose the first loop is kept (the search area and the gate already chose the
+    // place); without one the ranking by matches is the only prior, so every candidate to verify
+    // is verified and the loop is the one with the most inliers (Options::best_of_verified).
+    if (status == LoopStatus::kDetected && (query.has_pose || !options_.best_of_verified)) break;
   }
   if (support) last_support_ = std::make_pair(query_index, *support);
   result->verified_in_area.insert(result->verified_in_area.end(), verified.begin(), verified.end());

@@ -105,6 +105,9 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(overlap_match_factor >= 0 && overlap_relative >= 0 && overlap_relative <= 1,
                "overlap_match_factor must be >= 0 and overlap_relative in [0, 1], got {} and {}",
                overlap_match_factor, overlap_relative);
+  SL_CHECK_MSG(overlap_features >= 0 && overlap_window >= 1,
+               "overlap_features must be >= 0 and overlap_window >= 1, got {} and {}",
+               overlap_features, overlap_window);
   SL_CHECK_MSG(consistency_base_deg >= 0 && consistency_per_keyframe_deg >= 0 &&
                    two_view_consistency_per_keyframe_deg >= 0 &&
                    consistency_max_deg >= consistency_base_deg,
@@ -211,6 +214,13 @@ const KeyframeRecord& LoopDetector::Unpacked(const PackedKeyframe& packed) const
 size_t LoopDetector::StoredBytes() const {
   size_t total = 0;
   for (const auto& r : records_) total += r.Bytes();
+  return total;
+}
+
+size_t LoopDetector::RecentBufferBytes() const {
+  size_t total = 0;
+  for (const auto& d : recent_) total += d.size() * sizeof(Descriptor);
+  for (const auto& [index, d] : overlap_buffer_) total += d.size() * sizeof(Descriptor);
   return total;
 }
 
@@ -481,6 +491,13 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     last_pose_ = pose;
   }
   const size_t index = Store(std::move(rec), relocalize);
+  if (!query.has_pose && OverlapBufferUsed(query)) {
+    const size_t n = std::min(query.size(), static_cast<size_t>(options_.overlap_features));
+    overlap_buffer_.emplace_back(
+        index, std::vector<Descriptor>(query.descriptors.begin(), query.descriptors.begin() + n));
+    if (overlap_buffer_.size() > static_cast<size_t>(options_.overlap_window))
+      overlap_buffer_.pop_front();
+  }
   const auto finish = [&] {
     result.pose_segment = current_segment_;  // (the fallbacks replace the result)
     result.pose_reset = reset;

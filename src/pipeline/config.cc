@@ -305,6 +305,9 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "lowest small-K floor (>= 5)");
   k.Add(d + "max_verify", SL_FIELD(detector.max_verify), "candidates",
         "best-ranked candidates verified geometrically (>= 1)");
+  k.Add(d + "best_of_verified", SL_FIELD(detector.best_of_verified), "",
+        "no pose: verify every candidate to verify and keep the loop with the most inliers "
+        "(false: the first that passes)");
   k.Add(d + "verify_close_fraction", SL_FIELD(detector.verify_close_fraction), "fraction",
         "also verify the next candidates with at least this fraction of the max_verify-th's "
         "matches (0: off)");
@@ -323,6 +326,11 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "no pose: overlap needs this x the match floor (>= 0)");
   k.Add(d + "overlap_relative", SL_FIELD(detector.overlap_relative), "fraction",
         "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
+  k.Add(d + "overlap_features", SL_FIELD(detector.overlap_features), "features",
+        "no pose, query extracted with more than K: the walk matches this many of the recent "
+        "keyframes' extractions, kept in a buffer (0: stored records only; >= 0)");
+  k.Add(d + "overlap_window", SL_FIELD(detector.overlap_window), "keyframes",
+        "no pose: recent keyframes whose extraction the walk's buffer keeps (>= 1)");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
   k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "steps",

@@ -1,4 +1,5 @@
 // End-to-end tests of `sparseloop detect`.
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -92,7 +93,9 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
     for (std::string id; std::getline(verified, id, ';');) ids.push_back(id);
     EXPECT_FALSE(ids.empty()) << line;
     EXPECT_LE(ids.size(), 3u) << line;
-    EXPECT_EQ(ids.empty() ? "" : ids.back(), fields[5]) << line;
+    // Without poses every candidate to verify is verified and the most inliers kept
+    // (detector.best_of_verified): the match is one of them, not necessarily the last.
+    EXPECT_NE(std::find(ids.begin(), ids.end(), fields[5]), ids.end()) << line;
   }
   EXPECT_EQ(detected, loops);
 }

@@ -216,6 +216,40 @@ TEST(LoopDetector, AsymmetricMatchingStoresKAndFindsWhatKxKMisses) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
+// The overlap walk's buffer at a small K (Options::overlap_features): only keyframes without a
+// pose, only when the query is extracted with more than K, at most overlap_window of them, each
+// overlap_features descriptors: bounded memory whatever the map's size.
+TEST(LoopDetector, OverlapBufferIsBounded) {
+  auto buffer_bytes = [](LoopDetector::Options o, bool posed) {
+    o.features.max_features = 15;
+    o.asymmetric_matching = true;
+    o.overlap_features = 100;
+    o.overlap_window = 5;
+    if (!posed) o.search.strategy = SearchStrategy::kGlobal;
+    LoopDetector detector(o);
+    for (int64_t i = 0; i < 12; ++i) {
+      KeyframeInput in = Input(i, Textured(100 + static_cast<uint64_t>(i)));
+      if (posed)
+        in.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                                  Eigen::Vector3d(static_cast<double>(i), 0, 0));
+      detector.Process(in);
+    }
+    return detector.RecentBufferBytes();
+  };
+  LoopDetector::Options o;
+  EXPECT_EQ(buffer_bytes(o, false), 5u * 100u * sizeof(Descriptor));
+  EXPECT_EQ(buffer_bytes(o, true), 0u);  // with poses the walk does not run
+  LoopDetector::Options off;
+  off.overlap_gap = 0;  // no walk: no buffer
+  EXPECT_EQ(buffer_bytes(off, false), 0u);
+  LoopDetector::Options bad;
+  bad.overlap_window = 0;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+  bad = {};
+  bad.overlap_features = -1;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
 // Repeatability ranking (issue #19): a keyframe stores first the features the keyframe before
 // re-finds. Keyframe 1 is keyframe 0 moved a little plus transient high-contrast blobs (strong
 // corners that no other keyframe sees): ranked by response its K are mostly blob corners, ranked

@@ -199,6 +199,12 @@ class LoopDetector {
     int check_every = 1;   // run the loop check every N keyframes (paper's N), keyframes >= 1
     int min_matches = 12;  // candidates with fewer descriptor matches are not verified, count
     int max_verify = 3;    // best-ranked candidates verified geometrically, count
+    // Without a pose (global search) the first verified loop among the ranked candidates need
+    // not be the best: every candidate to verify is verified and the one with the most inliers
+    // is the loop. With a pose the first loop is kept (the search area and the pose gate chose
+    // the place). Costs up to max_verify - 1 verifications per loop without a pose
+    // (rtabmap corridor, K = 20: 47 -> 10 with 9 inliers was kept before 47 -> 9 with 10).
+    bool best_of_verified = true;
     // Close scores (issue #17, item 3): beyond max_verify, the next candidates are verified too
     // while their descriptor match count is at least verify_close_fraction x the max_verify-th
     // candidate's, up to max_verify_close in all (stopping at the first loop, as always). Under
@@ -241,6 +247,18 @@ class LoopDetector {
     int overlap_max_walk = 300;
     double overlap_match_factor = 3.0;
     double overlap_relative = 0.4;
+    // The walk at a small K: a stored record of K = 15-20 cannot reach the floor above (3 x 8
+    // matches), so the walk would end at its first keyframe and keep the road ahead, which a
+    // forward drive sees again 10-20 keyframes later, as a loop candidate. When the query is
+    // extracted with more than K features (asymmetric matching or repeatability ranking), the
+    // first overlap_features of the last overlap_window keyframes' extractions (keyframes without
+    // a pose only) are kept in a bounded buffer and the walk matches the query's first
+    // overlap_features against them, with the floors of a record of that size; beyond the buffer
+    // it goes on with the stored records. Memory: overlap_window x overlap_features x 32 B,
+    // whatever the map's size. 0 features: off (the walk reads the stored records only).
+    // Features >= 0 (used when > K); keyframes >= 1.
+    int overlap_features = 300;
+    int overlap_window = 64;
     // Without a pose, after the walk: a verified candidate is not a loop when a stored keyframe
     // between it and the query (at 1/2 and 3/4 of the way) verifies with the query with at least
     // as many inliers: the query continues the view of the path since the candidate, it did not
@@ -439,6 +457,10 @@ class LoopDetector {
   size_t StoredBytes() const;
   // Memory of the ANN retrieval index (0 unless retrieval == kAnn), bytes; not in StoredBytes().
   size_t RetrievalIndexBytes() const { return ann_ ? ann_->Bytes() : 0; }
+  // Memory of the bounded buffers of recent whole extractions (Options::repeatability_window,
+  // Options::overlap_features), descriptor bytes; not in StoredBytes(), does not grow with the
+  // map.
+  size_t RecentBufferBytes() const;
 
   // Query/match against stored records only (no extraction), for benchmarks and tests: matches
   // `query` against the given candidate ids and verifies the best.
@@ -582,6 +604,13 @@ class LoopDetector {
   // overlap_gap), for a query without a pose; `exclude_end` = first index excluded by
   // search.exclude_recent. Returns the first index that may be a candidate's upper bound + 1.
   size_t OverlapStart(const KeyframeRecord& query, size_t exclude_end) const;
+  // Options::overlap_features: the first overlap_features descriptors of recent keyframes'
+  // extractions (record index, descriptors), oldest first, at most overlap_window of them.
+  std::deque<std::pair<size_t, std::vector<Descriptor>>> overlap_buffer_;
+  bool OverlapBufferUsed(const KeyframeRecord& query) const {
+    return options_.overlap_gap > 0 && options_.overlap_features > options_.features.max_features &&
+           static_cast<int>(query.size()) > options_.features.max_features;
+  }
   // Options::continuity_check: a keyframe between match and query (record indices) verifies
   // with the query with >= `inliers` inliers.
   bool ContinuesRecentView(const KeyframeRecord& query, size_t query_index, size_t match_index,
