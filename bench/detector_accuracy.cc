@@ -9,7 +9,9 @@
 //     (rtabmap_corridor_loop, global search, no poses, guessed intrinsics, default options but K,
 //     ranking popcount / response / grid, K in {8,10,12,15,18,32,50,64,100,300});
 //   rtabmap.oracle[symmetric_K | asymmetric_K]: every pair verified, per query the best true and
-//     false pair's inliers, the best recall@100%P of any inlier threshold (RtabmapOracle below);
+//     false pair's inliers, the best recall@100%P of any inlier threshold and the best recall
+//     with at most one false loop and with the weak-pair agreement rule (RtabmapOracle below;
+//     K 15, 20, 300 and asymmetric 16-18);
 //   castle: the default detector over views 0001..0029 with GT poses: loops found, the 29 -> x
 //     loop's relative rotation error and translation direction error vs GT, degrees;
 //   castle_pairs[ranking][K]: descriptor matches and essential inliers (min_inliers 5) of the
@@ -33,6 +35,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "castle_input.h"
 #include "euroc_pairs.h"
 #include "real_data.h"
 #include "sparseloop/loop/loop_detector.h"
@@ -58,12 +61,7 @@ json CastleLoop(const std::vector<Frame>& frames) {
   json loops = json::array();
   json out;
   for (size_t i = 0; i < frames.size(); ++i) {
-    KeyframeInput in;
-    in.id = static_cast<int64_t>(i + 1);
-    in.timestamp = static_cast<double>(in.id);
-    in.image = frames[i].image;
-    in.intrinsics = frames[i].intrinsics;
-    in.world_from_cam = Sim3d(frames[i].world_from_cam);
+    const KeyframeInput in = test::CastleKeyframe(frames, i);
     const LoopResult r = detector.Process(in);
     if (!r.detected()) continue;
     const Rigid3d gt = frames[r.match_id - 1].world_from_cam.Inverse() * frames[i].world_from_cam;
@@ -227,6 +225,45 @@ json Rtabmap(const fs::path& root, bool quick) {
   return out;
 }
 
+// A query's top pair in the oracle: its inliers, match and truth.
+struct OracleTop {
+  int inliers = 0;
+  int match = -1;
+  bool true_pair = false;
+};
+
+// The best recall@100%P of the weak-pair rule (LoopDetector::Options::weak_pairs) on the
+// oracle's top pairs: a top pair is accepted at >= strong inliers, or at >= weak when the last
+// accepted query is at most `window` keyframes back and its match at most window + that gap
+// from this one (LoopDetector::Agrees). Over strong in [5, 30], weak in [5, strong]; an upper
+// bound for a detector that agrees consecutive queries this way and ranks by inliers.
+json AgreementCeiling(const std::vector<OracleTop>& top, size_t queries_with_gt, int window) {
+  double best = 0.0;
+  int best_strong = 0, best_weak = 0;
+  for (int strong = 5; strong <= 30; ++strong) {
+    for (int weak = 5; weak <= strong; ++weak) {
+      int tp = 0, fp = 0, last_q = -1, last_m = -1;
+      for (int q = 0; q < static_cast<int>(top.size()) && fp == 0; ++q) {
+        const OracleTop& t = top[static_cast<size_t>(q)];
+        if (t.inliers < weak) continue;
+        const bool agrees = last_q >= 0 && q - last_q <= window &&
+                            std::abs(t.match - last_m) <= window + (q - last_q);
+        if (t.inliers < strong && !agrees) continue;
+        (t.true_pair ? tp : fp) += 1;
+        last_q = q;
+        last_m = t.match;
+      }
+      const double recall = double(tp) / double(queries_with_gt);
+      if (fp == 0 && recall > best) {
+        best = recall;
+        best_strong = strong;
+        best_weak = weak;
+      }
+    }
+  }
+  return {{"recall", best}, {"strong", best_strong}, {"weak", best_weak}};
+}
+
 // ---- rtabmap oracle: what single-pair verification can reach at a given K, whatever the
 // search. Every pair at least `exclude_recent` (30) apart is matched and verified (5-inlier floor
 // so that counts below the detector's floors are seen); per query the best GT-true and the best
@@ -239,9 +276,10 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
                    const std::set<int>& queries_with_gt) {
   json out;
   const int gap = SearchAreaOptions{}.exclude_recent;
-  for (const int k : {15, 20, 300}) {
+  for (const int k : {15, 16, 17, 18, 20, 300}) {
     for (const bool asymmetric : {false, true}) {
       if (k == 300 && asymmetric) continue;  // the query extraction is K already
+      if (k != 15 && k != 20 && k != 300 && !asymmetric) continue;  // K 16-18: the byte limit
       LoopDetector::Options options;
       FeatureOptions stored_options = options.features;
       stored_options.max_features = k;
@@ -260,6 +298,7 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
       verify.min_inliers = 5;
       const int n = static_cast<int>(images.size());
       std::vector<int> best_true(images.size(), 0), best_false(images.size(), 0);
+      std::vector<int> true_match(images.size(), -1), false_match(images.size(), -1);
       for (int q = 0; q < n; ++q) {
         for (int m = 0; m + gap < q; ++m) {
           const std::vector<DescriptorMatch> matches =
@@ -269,11 +308,15 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
           if (matches.size() < 5) continue;
           const VerificationResult v = VerifyPair(query[q], stored[m], matches, verify);
           const int inliers = v.success ? v.inliers : 0;
-          int& best = gt.count({q, m}) > 0 ? best_true[q] : best_false[q];
-          best = std::max(best, inliers);
+          const bool is_true = gt.count({q, m}) > 0;
+          int& best = is_true ? best_true[q] : best_false[q];
+          if (inliers > best) {
+            best = inliers;
+            (is_true ? true_match[q] : false_match[q]) = m;
+          }
         }
       }
-      double ceiling = 0.0;
+      double ceiling = 0.0, ceiling_one_false = 0.0;
       int ceiling_t = 0;
       json by_threshold = json::array();
       for (int t = 5; t <= 60; ++t) {
@@ -289,6 +332,7 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
           ceiling = recall;
           ceiling_t = t;
         }
+        if (fp <= 1) ceiling_one_false = std::max(ceiling_one_false, recall);
       }
       int verifiable = 0;
       json true_counts = json::array(), false_counts = json::array();
@@ -297,9 +341,18 @@ json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<
         true_counts.push_back(best_true[static_cast<size_t>(q)]);
       }
       for (int q = 0; q < n; ++q) false_counts.push_back(best_false[static_cast<size_t>(q)]);
+      std::vector<OracleTop> top(images.size());
+      for (size_t q = 0; q < images.size(); ++q) {
+        const bool true_on_top = best_true[q] > best_false[q];
+        top[q] = {true_on_top ? best_true[q] : best_false[q],
+                  true_on_top ? true_match[q] : false_match[q], true_on_top};
+      }
       out[(asymmetric ? "asymmetric_" : "symmetric_") + std::to_string(k)] = {
           {"ceiling", ceiling},
           {"ceiling_threshold", ceiling_t},
+          {"ceiling_one_false", ceiling_one_false},
+          {"ceiling_with_agreement",
+           AgreementCeiling(top, queries_with_gt.size(), options.agreement_window)},
           {"by_threshold", by_threshold},
           {"verifiable_at_8", double(verifiable) / double(queries_with_gt.size())},
           {"best_true_inliers", true_counts},

@@ -538,18 +538,29 @@ def real_sets_md(da):
                  "\n\n" + table(["ranking"] + [f"K={k}" for k in ks], rows) + "\n")
     oracle = rt.get("oracle", {})
     if oracle:
+        def agreement(a):
+            if not a:
+                return "-"
+            return f"{fmt(a['recall'], 3)} ({a['strong']} / {a['weak']})"
+
         rows = []
         for name, o in oracle.items():
             at = {b["t"]: b for b in o.get("by_threshold", [])}
             at8 = at.get(8, {})
             rows.append([name.replace("_", " K = "), f"{fmt(o['ceiling'], 3)} (t = {o['ceiling_threshold']})",
+                         fmt(o.get("ceiling_one_false", float("nan")), 3),
+                         agreement(o.get("ceiling_with_agreement")),
                          f"{fmt(at8.get('recall', float('nan')), 3)}, {at8.get('false', '?')} false",
                          fmt(o["verifiable_at_8"], 3)])
         text += ("\nrtabmap oracle (every pair >= 30 keyframes apart verified, default ranking; "
                  "docs/DETECTOR.md): the best recall at 100 % precision of any inlier threshold t "
-                 "for a detector that accepts each query's top pair, the same at the small-K "
-                 "floor t = 8, and the GT queries whose best true pair reaches 8 inliers\n\n"
-                 + table(["matching, K", "ceiling", "at t = 8", "verifiable at 8"], rows) + "\n")
+                 "for a detector that accepts each query's top pair, the best with at most one "
+                 "false loop, the best at 100 % precision with the weak-pair agreement rule "
+                 "(strong / weak inlier floors), the same at the small-K floor t = 8, and the GT "
+                 "queries whose best true pair reaches 8 inliers\n\n"
+                 + table(["matching, K", "ceiling", "<= 1 false", "with agreement", "at t = 8",
+                          "verifiable at 8"], rows)
+                 + "\n")
     return text
 
 

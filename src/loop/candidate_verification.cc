@@ -236,6 +236,14 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
                                       std::optional<size_t>* support, LoopResult* trial) {
   const KeyframeRecord& match = Stored(match_index);
   VerificationResult v = VerifyPair(query, match, matches, verify);
+  // Depths the detector triangulated for the match (Options::stored_depths_window) cover part
+  // of its K: when PnP on them falls short, the two-view verification as without them.
+  if (!v.success && options_.stored_depths_window > 0 && !query.has_depths() &&
+      match.has_depths()) {
+    KeyframeRecord two_view = match;
+    two_view.depths.clear();
+    v = VerifyPair(query, two_view, matches, verify);
+  }
   int map_points = 0, map_inliers = 0;
   if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
       options_.local_map.enabled && match.has_pose) {

@@ -374,6 +374,23 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   PutRecord(kf.session, PackedKeyframe::Pack(ToFields(kf)));  // packed before any write
 }
 
+void MapDatabase::UpdateRecord(int64_t session, const PackedKeyframe& record) {
+  BeginIfNeeded();
+  Statement st(db_, "UPDATE keyframes SET timestamp = ?, record = ? WHERE session = ? AND id = ?",
+               path_);
+  sqlite3_bind_double(st.get(), 1, record.timestamp());
+  const auto bytes = record.bytes();
+  st.BindBlob(2, bytes.data(), bytes.size());
+  sqlite3_bind_int64(st.get(), 3, session);
+  sqlite3_bind_int64(st.get(), 4, record.id());
+  if (st.Step() != SQLITE_DONE) {
+    throw MapDatabaseError(path_.string() + ": cannot update keyframe: " + sqlite3_errmsg(db_));
+  }
+  SL_CHECK_MSG(sqlite3_changes(db_) == 1, "keyframe id {} is not stored in session {}",
+               record.id(), session);
+  MaybeCommit();
+}
+
 void MapDatabase::PutRecord(int64_t session, const PackedKeyframe& record) {
   BeginIfNeeded();
   Statement st(db_, "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?,?,?,?)", path_);

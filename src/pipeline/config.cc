@@ -333,6 +333,9 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "no pose: recent keyframes whose extraction the walk's buffer keeps (>= 1)");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
+  k.Add(d + "stored_depths_window", SL_FIELD(detector.stored_depths_window), "keyframes",
+        "without vSLAM depths: the stored K are triangulated with this many keyframes' whole "
+        "extractions each side (0: off)");
   k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "steps",
         "reject a metric loop whose query is farther than this many raw steps (mean around the "
         "match) from it (0: off)");

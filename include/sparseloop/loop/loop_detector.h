@@ -159,9 +159,13 @@ struct LoopResult {
   bool has_world_from_query = false;
   Sim3d world_from_query;       // valid when has_world_from_query
   bool relocalization = false;  // the query had no pose (or came through Relocalize())
+  // Earlier keyframes whose stored record this call changed (Options::stored_depths_window:
+  // more of their K triangulated with this keyframe); a map that stored them stores them again.
+  std::vector<int64_t> updated_records;
   // Keyframe ids geometrically verified for this query, best-ranked first (at most
-  // Options::max_verify per search, stopping at the first loop): those the search area gave, then
-  // those the appearance fallback ranked (Options::appearance_fallback, when the area gave none).
+  // Options::max_verify per search, stopping at the first loop; without a pose all of them,
+  // Options::best_of_verified): those the search area gave, then those the appearance fallback
+  // ranked (Options::appearance_fallback, when the area gave none).
   std::vector<int64_t> verified_in_area;
   std::vector<int64_t> verified_by_appearance;
   StageTimings timings;
@@ -422,6 +426,20 @@ class LoopDetector {
       void Check() const;
     };
     LocalMapOptions local_map;
+    // Depths for the stored K when the vSLAM gives none (issue #19: the paper keeps features at
+    // mapped points, points with a depth). Each keyframe with a pose and without depths keeps
+    // its whole extraction for the next stored_depths_window keyframes; its K stored features
+    // are triangulated (local_map.triangulation: parallax, reprojection) with the raw poses
+    // against the whole extractions of the window's keyframes before it and, as they arrive,
+    // after it (the record is packed again when more of its K get a depth:
+    // LoopResult::updated_records). A later loop to it is then PnP of the query against the
+    // match's points (metric, in the match's raw units) instead of a two-view direction; when
+    // PnP falls short the two-view verification runs as before. Memory: the window's whole
+    // extractions (RecentBufferBytes), and 2 B per stored feature. Experimental, off by default:
+    // at 4 it closes the castle ring at K = 15 under drift (29 -> 02 PnP), but it is sensitive
+    // to the window and on renders without depths it loses loops (docs/DETECTOR.md "Stored
+    // depths from the detector's own triangulation"). Keyframes, >= 0 (0: off).
+    int stored_depths_window = 0;
     uint64_t seed = 42;  // copied into verify.seed
     void Check() const;
     // The inlier threshold actually applied: max(SmallK(verify.min_inliers),
@@ -607,6 +625,20 @@ class LoopDetector {
   // Options::overlap_features: the first overlap_features descriptors of recent keyframes'
   // extractions (record index, descriptors), oldest first, at most overlap_window of them.
   std::deque<std::pair<size_t, std::vector<Descriptor>>> overlap_buffer_;
+  // Options::stored_depths_window: the recent keyframes' whole extractions and stored subsets
+  // (record index), oldest first.
+  struct DepthBufferEntry {
+    size_t index = 0;
+    KeyframeRecord whole;
+    KeyframeRecord stored;
+  };
+  std::deque<DepthBufferEntry> depth_buffer_;
+  // A stored record takes triangulated depths when at least this many of its K get one.
+  static constexpr int kMinStoredDepths = 3;
+  // Options::stored_depths_window: `stored` (the K of `whole`) triangulated against the buffer,
+  // and the buffer's stored records against `whole` (result->updated_records).
+  void TriangulateStoredDepths(const KeyframeRecord& whole, KeyframeRecord* stored,
+                               LoopResult* result);
   bool OverlapBufferUsed(const KeyframeRecord& query) const {
     return options_.overlap_gap > 0 && options_.overlap_features > options_.features.max_features &&
            static_cast<int>(query.size()) > options_.features.max_features;
