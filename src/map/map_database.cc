@@ -374,32 +374,32 @@ void MapDatabase::PutKeyframe(const StoredKeyframe& kf) {
   PutRecord(kf.session, PackedKeyframe::Pack(ToFields(kf)));  // packed before any write
 }
 
-void MapDatabase::UpdateRecord(int64_t session, const PackedKeyframe& record) {
+int MapDatabase::StepRecord(const char* sql, int64_t session, const PackedKeyframe& record) {
   BeginIfNeeded();
-  Statement st(db_, "UPDATE keyframes SET timestamp = ?, record = ? WHERE session = ? AND id = ?",
-               path_);
-  sqlite3_bind_double(st.get(), 1, record.timestamp());
-  const auto bytes = record.bytes();
-  st.BindBlob(2, bytes.data(), bytes.size());
-  sqlite3_bind_int64(st.get(), 3, session);
-  sqlite3_bind_int64(st.get(), 4, record.id());
-  if (st.Step() != SQLITE_DONE) {
-    throw MapDatabaseError(path_.string() + ": cannot update keyframe: " + sqlite3_errmsg(db_));
-  }
-  SL_CHECK_MSG(sqlite3_changes(db_) == 1, "keyframe id {} is not stored in session {}",
-               record.id(), session);
-  MaybeCommit();
-}
-
-void MapDatabase::PutRecord(int64_t session, const PackedKeyframe& record) {
-  BeginIfNeeded();
-  Statement st(db_, "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?,?,?,?)", path_);
+  Statement st(db_, sql, path_);
   sqlite3_bind_int64(st.get(), 1, session);
   sqlite3_bind_int64(st.get(), 2, record.id());
   sqlite3_bind_double(st.get(), 3, record.timestamp());
   const auto bytes = record.bytes();
   st.BindBlob(4, bytes.data(), bytes.size());
-  const int rc = st.Step();
+  return st.Step();
+}
+
+void MapDatabase::UpdateRecord(int64_t session, const PackedKeyframe& record) {
+  const int rc =
+      StepRecord("UPDATE keyframes SET timestamp = ?3, record = ?4 WHERE session = ?1 AND id = ?2",
+                 session, record);
+  if (rc != SQLITE_DONE) {
+    throw MapDatabaseError(path_.string() + ": cannot update keyframe: " + sqlite3_errmsg(db_));
+  }
+  SL_CHECK_MSG(sqlite3_changes(db_) == 1, "keyframe id {} is not stored in session {}", record.id(),
+               session);
+  MaybeCommit();
+}
+
+void MapDatabase::PutRecord(int64_t session, const PackedKeyframe& record) {
+  const int rc = StepRecord(
+      "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?1,?2,?3,?4)", session, record);
   if (rc == SQLITE_CONSTRAINT) {
     // Statement-level rollback: earlier keyframes in this transaction are kept.
     SL_CHECK_MSG(false, "keyframe id {} already stored in session {}", record.id(), session);

@@ -475,9 +475,9 @@ class LoopDetector {
   size_t StoredBytes() const;
   // Memory of the ANN retrieval index (0 unless retrieval == kAnn), bytes; not in StoredBytes().
   size_t RetrievalIndexBytes() const { return ann_ ? ann_->Bytes() : 0; }
-  // Memory of the bounded buffers of recent whole extractions (Options::repeatability_window,
-  // Options::overlap_features), descriptor bytes; not in StoredBytes(), does not grow with the
-  // map.
+  // Memory of the bounded buffers of recent extractions (Options::repeatability_window,
+  // Options::overlap_features: descriptor bytes; Options::stored_depths_window: the buffered
+  // records' bytes); not in StoredBytes(), does not grow with the map.
   size_t RecentBufferBytes() const;
 
   // Query/match against stored records only (no extraction), for benchmarks and tests: matches

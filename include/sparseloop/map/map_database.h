@@ -122,6 +122,8 @@ class MapDatabase {
   void Exec(const char* sql) const;
   void MaybeCommit();
   void BeginIfNeeded();
+  // Binds (session, record id, timestamp, record bytes) as ?1-?4 of `sql` and steps it.
+  int StepRecord(const char* sql, int64_t session, const PackedKeyframe& record);
 
   std::filesystem::path path_;
   MapDatabaseOptions options_;
