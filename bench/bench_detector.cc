@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "data_dir.h"  // tests/support
 #include "features/linear_exact_resize.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
@@ -26,7 +27,7 @@ namespace sparseloop {
 namespace {
 
 const std::filesystem::path kKitti =
-    std::filesystem::path(SPARSELOOP_DATA_DIR) / "kitti07_first160" / "image_0";
+    sparseloop::test::DataDir() / "kitti07_first160" / "image_0";
 
 // KITTI 04-12 cam0 (kitti07_first160), from the one table in the synthetic module.
 CameraIntrinsics KittiCamera() { return synthetic::KittiCam0Intrinsics(7); }
@@ -66,7 +67,7 @@ void BM_ProcessKittiKeyframe(benchmark::State& state) {
   const auto& images = KittiImages();
   const bool paper = state.range(1) != 0;
   if (images.empty() || (paper && KittiPoses().size() < images.size())) {
-    state.SkipWithError("kitti07_first160 not found (set SPARSELOOP_DATA_DIR)");
+    state.SkipWithError("kitti07_first160 not found (set SPARSELOOP_DATA)");
     return;
   }
   LoopDetector::Options options;

@@ -16,7 +16,7 @@ inline bool InCi() {
   return ci != nullptr && std::string(ci) == "true";
 }
 
-inline std::filesystem::path SourceDir() { return SPARSELOOP_SOURCE_DIR; }
+inline std::filesystem::path SourceDir() { return ConfiguredSourceDir(); }
 
 // A fresh, empty directory for this test (`suffix` gives a second, independent one).
 // Every call empties it: call once per test and keep the path.

@@ -31,7 +31,7 @@ std::string Quote(const std::string& s) {
 CliResult RunCli(const std::vector<std::string>& args) {
   // A folder of its own: the test's TempDir() may hold the command's input files.
   const auto dir = TempDir(".cli_output");
-  std::string cmd = Quote(SPARSELOOP_CLI);
+  std::string cmd = Quote(ConfiguredCliPath().string());
   for (const auto& a : args) cmd += " " + Quote(a);
   cmd += " >" + Quote((dir / "stdout").string()) + " 2>" + Quote((dir / "stderr").string());
   const int status = std::system(cmd.c_str());
@@ -54,7 +54,7 @@ const std::filesystem::path& RenderedLoopSequence() {
     const fs::path tmp = root / ("rendered_loop_sequence.tmp." + std::to_string(::getpid()));
     fs::remove_all(tmp);
     fs::create_directories(root);
-    std::string cmd = Quote(SPARSELOOP_CLI) +
+    std::string cmd = Quote(ConfiguredCliPath().string()) +
                       " render --world aerial --plan circuit --frames 60 --laps 2 --seed 1 --out " +
                       Quote(tmp.string()) + " >/dev/null 2>&1";
     if (std::system(cmd.c_str()) != 0) return fs::path();
