@@ -23,14 +23,24 @@ endfunction()
 # A GoogleTest binary (includes: tests/, tests/support/ (fixtures shared with bench/), src/);
 # each TEST becomes a ctest test (discovered before the test runs, so the
 # build never executes test code). The test sees SPARSELOOP_DATA_DIR and SPARSELOOP_SOURCE_DIR.
+# Labels (docs/TESTING.md): a level, `unit` (the default: one module, synthetic or small real
+# inputs) or `scenario` (end to end on renders or real data), plus an area (cli, runtime, ros, ...).
+# `sanitize` marks the scenarios the sanitizer stages run besides every unit test. The custom
+# target sanitize_tests builds exactly the binaries those stages run.
+if(NOT TARGET sanitize_tests)
+  add_custom_target(sanitize_tests)
+endif()
 function(sparseloop_add_test)
   cmake_parse_arguments(ARG "" "NAME" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SOURCES})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LIBS} sparseloop_test_main)
   target_include_directories(${ARG_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests
     ${PROJECT_SOURCE_DIR}/tests/support ${PROJECT_SOURCE_DIR}/src)
-  if(NOT ARG_LABELS)
-    set(ARG_LABELS unit)
+  if(NOT "unit" IN_LIST ARG_LABELS AND NOT "scenario" IN_LIST ARG_LABELS)
+    list(PREPEND ARG_LABELS unit)
+  endif()
+  if("unit" IN_LIST ARG_LABELS OR "sanitize" IN_LIST ARG_LABELS)
+    add_dependencies(sanitize_tests ${ARG_NAME})
   endif()
   gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60
     PROPERTIES LABELS "${ARG_LABELS}"

@@ -8,6 +8,8 @@ set(work ${BINARY_DIR}/package_test)
 set(root ${work}/root)
 file(REMOVE_RECURSE ${work} ${BINARY_DIR}/package)
 
+# run(CMD...): runs CMD, fails the test with its output unless it exits 0; its stdout in `out`.
+# (No ';' inside an argument: CMake would split it.)
 function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
@@ -26,12 +28,16 @@ if(NOT EXISTS ${deb})
 endif()
 
 run(dpkg-deb --field ${deb} Depends)
-foreach(dep libceres-dev libopencv-dev libeigen3-dev libfaiss-dev python3-numpy libceres3 libc6)
+# The -dev packages a consumer links (our list) and the shared libraries the binaries link
+# (dpkg-shlibdeps: OpenCV's runtime package, whatever its soname suffix).
+foreach(dep libceres-dev libopencv-dev libeigen3-dev libfaiss-dev python3-numpy libc6
+            "libopencv-core[0-9]+")
   if(NOT out MATCHES "(^|, )${dep}( |,|$)")
     message(FATAL_ERROR "Depends of ${deb} lacks ${dep}: ${out}")
   endif()
 endforeach()
 
+file(MAKE_DIRECTORY ${root})
 run(dpkg-deb -x ${deb} ${root})
 set(usr ${root}/usr)
 set(expected bin/sparseloop include/sparseloop/runtime/loop_closing.h
@@ -60,7 +66,7 @@ if(NOT out MATCHES "${VERSION}")
   message(FATAL_ERROR "the packaged CLI's --version does not name ${VERSION}: ${out}")
 endif()
 run(${CMAKE_COMMAND} -E env PYTHONPATH=${usr}/lib/python3/dist-packages
-  ${PYTHON} -c "import sparseloop, os; print(os.path.dirname(sparseloop.__file__))")
+  ${PYTHON} -c "import os, sparseloop\nprint(os.path.dirname(sparseloop.__file__))")
 string(STRIP "${out}" imported_from)
 file(REAL_PATH ${usr}/lib/python3/dist-packages/sparseloop expected_from)
 file(REAL_PATH ${imported_from} imported_from)

@@ -126,6 +126,7 @@ struct Parser {
 // What a g2o file holds, record by record (ReadG2o): one method per record kind, then the
 // vertices completed (edges-only files) and the graph built, each error with its line.
 struct G2oRecords {
+  explicit G2oRecords(Parser& parser) : p(parser) {}
   Parser& p;
   Dim dim = Dim::kUnknown;
   std::map<int64_t, Sim3d> vertices;
@@ -297,7 +298,7 @@ PoseGraph ReadG2o(const std::filesystem::path& path) {
 PoseGraph ReadG2o(std::istream& in, const std::string& name) {
   Parser p;
   p.name = name;
-  G2oRecords records{p};
+  G2oRecords records(p);
   std::string line;
   while (std::getline(in, line)) {
     ++p.line_no;

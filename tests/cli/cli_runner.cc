@@ -14,13 +14,15 @@
 #include "test_util.h"
 
 namespace sparseloop::test {
-namespace {
-std::string Slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
+
+std::string ReadText(const std::filesystem::path& path) {
+  std::ifstream in(path);
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
 }
+
+namespace {
 std::string Quote(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
@@ -37,8 +39,8 @@ CliResult RunCli(const std::vector<std::string>& args) {
   const int status = std::system(cmd.c_str());
   CliResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = Slurp(dir / "stdout");
-  r.err = Slurp(dir / "stderr");
+  r.out = ReadText(dir / "stdout");
+  r.err = ReadText(dir / "stderr");
   return r;
 }
 

@@ -22,7 +22,6 @@ std::string ReadAll(const std::filesystem::path& p) {
   return ss.str();
 }
 
-const char* kCastleIntrinsics = "689.87,691.04,379.798,251.327";
 
 TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   SL_REQUIRE_DATA("castle_p30_768");

@@ -22,7 +22,6 @@ std::string Slurp(const std::filesystem::path& p) {
   return ss.str();
 }
 
-const char* kCastleIntrinsics = "689.87,691.04,379.798,251.327";
 
 // Camera centre of castle view i (Strecha format: K 3x3, 3 zeros, R 3x3, centre, w h).
 Eigen::Vector3d CastleCentre(int i) {

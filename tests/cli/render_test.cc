@@ -186,11 +186,6 @@ TEST(RenderCli, StreetAlongKitti00) {
   EXPECT_DOUBLE_EQ(d.intrinsics.fx, 718.856);
 }
 
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p);
-  return std::string((std::istreambuf_iterator<char>(in)), {});
-}
-
 // A fabricated run folder: GT circle, drifted raw, corrected = GT + small noise, loops (one false).
 void FabricateRun(const fs::path& dir) {
   std::ofstream gt(dir / "poses_gt.txt"), raw(dir / "poses_raw.txt"), cor(dir / "trajectory.txt");

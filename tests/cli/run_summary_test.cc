@@ -38,13 +38,6 @@ std::vector<std::map<std::string, std::string>> ReadCsv(const fs::path& p) {
   return rows;
 }
 
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Ran once: the rendered loop sequence through `run` with its GT.
 const fs::path& RunOnRenderedSequence() {
   static const fs::path out = [] {

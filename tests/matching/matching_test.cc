@@ -285,7 +285,9 @@ TEST(Matching, StoredIntoQueryIsTheStoredSidesRatioTestAndMutual) {
   for (size_t i = 0; i < m.size(); ++i) {
     got.insert({m[i].query, m[i].train});
     EXPECT_EQ(m[i].distance, HammingDistance(query[m[i].query], stored[m[i].train]));
-    if (i > 0) EXPECT_LT(m[i - 1].query, m[i].query);  // sorted by query index
+    if (i > 0) {
+      EXPECT_LT(m[i - 1].query, m[i].query);  // sorted by query index
+    }
   }
   EXPECT_EQ(got, expected);
   // The 7 planted singles (3..9) are found; the twins' stored descriptors (0..2) are not.

@@ -18,18 +18,18 @@ namespace {
 
 constexpr double kFocal = 500.0;
 
-struct Scene {
+struct InformationScene {
   KeyframeRecord query, match;
   std::vector<DescriptorMatch> matches;
 };
 
 // n points in front of both cameras; query observes them with pixel noise `px`; `depths_in`
 // gives each side's depths (true depth x exp(N(0, depth_sigma)) when set).
-Scene MakeScene(const Sim3d& match_from_query, int n, double px, bool match_depths,
+InformationScene MakeInformationScene(const Sim3d& match_from_query, int n, double px, bool match_depths,
                 bool query_depths, double depth_sigma, std::mt19937_64& rng) {
   std::normal_distribution<double> n01(0.0, 1.0);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  Scene s;
+  InformationScene s;
   s.query.focal_px = s.match.focal_px = static_cast<float>(kFocal);
   s.query.has_pose = s.match.has_pose = true;
   const Sim3d query_from_match = match_from_query.Inverse();
@@ -70,7 +70,7 @@ double MeanNees(bool match_depths, bool query_depths, double depth_sigma, int tr
   double sum = 0.0;
   int used = 0;
   for (int t = 0; t < trials; ++t) {
-    const Scene s = MakeScene(truth, 80, px, match_depths, query_depths, depth_sigma, rng);
+    const InformationScene s = MakeInformationScene(truth, 80, px, match_depths, query_depths, depth_sigma, rng);
     options.seed = 100 + t;
     const VerificationResult v = VerifyPair(s.query, s.match, s.matches, options);
     EXPECT_TRUE(v.success);
@@ -106,7 +106,7 @@ TEST(PoseInformation, PnpPointsInMatchNeesMatchesSixDofAndScaleIsFree) {
   EXPECT_LT(MeanNees(true, false, 0.0, 200, RelativePoseKind::kSE3Metric, &dof, 1.0), 14.0);
   // The free direction is the relative scale alone (the points live in the match frame).
   auto rng = test::SeededRng(3);
-  const Scene s = MakeScene(TruePose(), 60, 1.0, true, false, 0.0, rng);
+  const InformationScene s = MakeInformationScene(TruePose(), 60, 1.0, true, false, 0.0, rng);
   const VerificationResult v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
   ASSERT_TRUE(v.success);
   const Eigen::SelfAdjointEigenSolver<PoseInformation7> eig(v.information);
@@ -122,7 +122,7 @@ TEST(PoseInformation, PnpPointsInQueryLeavesTheCloudScaleAboutTheMatchCameraFree
   EXPECT_LT(nees, 8.0);
   // Null direction [R^T t / s, 0, 1]: scaling the query's cloud about the match camera.
   auto rng = test::SeededRng(4);
-  const Scene s = MakeScene(TruePose(), 60, 1.0, false, true, 0.0, rng);
+  const InformationScene s = MakeInformationScene(TruePose(), 60, 1.0, false, true, 0.0, rng);
   const VerificationResult v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});
   ASSERT_TRUE(v.success);
   const Eigen::SelfAdjointEigenSolver<PoseInformation7> eig(v.information);
@@ -164,14 +164,16 @@ TEST(PoseInformation, TruncatedResidualSigmaRecoversTheNoise) {
     const double mean_r2 = sum / kept;
     EXPECT_NEAR(TruncatedResidualSigma(mean_r2, threshold), sigma, 0.02 * sigma) << sigma;
     // Without the correction the cut residuals claim a smaller noise.
-    if (sigma >= 1.0) EXPECT_LT(TruncatedResidualSigma(mean_r2, 0.0), 0.85 * sigma);
+    if (sigma >= 1.0) {
+      EXPECT_LT(TruncatedResidualSigma(mean_r2, 0.0), 0.85 * sigma);
+    }
   }
 }
 
 TEST(PoseInformation, MoreInliersMeanMoreInformation) {
   auto rng = test::SeededRng(5);
-  const Scene few = MakeScene(TruePose(), 20, 1.0, true, false, 0.0, rng);
-  const Scene many = MakeScene(TruePose(), 200, 1.0, true, false, 0.0, rng);
+  const InformationScene few = MakeInformationScene(TruePose(), 20, 1.0, true, false, 0.0, rng);
+  const InformationScene many = MakeInformationScene(TruePose(), 200, 1.0, true, false, 0.0, rng);
   const VerificationResult a = VerifyPair(few.query, few.match, few.matches, VerifyOptions{});
   const VerificationResult b = VerifyPair(many.query, many.match, many.matches, VerifyOptions{});
   ASSERT_TRUE(a.success && b.success);

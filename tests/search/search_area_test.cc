@@ -254,7 +254,9 @@ TEST(SearchAreaUncertainty, ContainsTheTruthOnDriftedLapsWhereThePaperAreaDoesNo
       EXPECT_GE(f_uncertain, 0.95) << "drift x" << drift << " seed " << seed;
       EXPECT_GE(f_uncertain, f_paper);
       EXPECT_LT(candidates / eligible, 0.5);  // an area, not the whole past
-      if (drift >= 4.0) EXPECT_LT(f_paper, 0.5) << "the old area should lose the truth here";
+      if (drift >= 4.0) {
+        EXPECT_LT(f_paper, 0.5) << "the old area should lose the truth here";
+      }
       // Tied by a loop, the odometry since it is shorter: the area stays on the truth and
       // shrinks (measured: by 10-25 %; the keyframes far from the loop keep their long paths).
       EXPECT_GE(static_cast<double>(in_tied) / queries, 0.95);

@@ -85,7 +85,7 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
       std::vector<std::pair<double, int>> inside;  // (distance / radius, k)
       for (int k = 0; k < E; ++k) {
         double best = std::numeric_limits<double>::infinity();
-        Eigen::Vector3d centre;
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
         for (const auto& [lq, lm] : paths) {
           const double odometry = std::abs(L[t] - L[lq]) + std::abs(L[lm] - L[k]);
           if (odometry < best) {

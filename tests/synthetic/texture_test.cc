@@ -53,7 +53,9 @@ TEST(ProceduralTextures, DeterministicDistinctAndCornerRich) {
         EXPECT_EQ(pa, b->textures[k].SampleLevel(x + 0.5, y + 0.5, 0));
         if (k > 0 && std::abs(pa - a->textures[0].SampleLevel(x + 0.5, y + 0.5, 0)) > 10) ++differ;
       }
-    if (k > 0) EXPECT_GT(differ, 128 * 128 / 2) << "textures 0 and " << k << " look alike";
+    if (k > 0) {
+      EXPECT_GT(differ, 128 * 128 / 2) << "textures 0 and " << k << " look alike";
+    }
   }
   o.seed += 1;
   const auto c = MakeProceduralTextures(o);
