@@ -43,6 +43,18 @@ function(sparseloop_add_test)
     add_dependencies(sanitize_tests ${ARG_NAME})
   endif()
   gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 60
-    PROPERTIES LABELS "${ARG_LABELS}"
-               ENVIRONMENT "SPARSELOOP_TEST_TMP=${CMAKE_BINARY_DIR}/test_tmp")
+    TEST_LIST ${ARG_NAME}_TESTS
+    PROPERTIES ENVIRONMENT "SPARSELOOP_TEST_TMP=${CMAKE_BINARY_DIR}/test_tmp")
+  # Labels are set after discovery by a file ctest includes next: gtest_discover_tests passes its
+  # PROPERTIES on as flat arguments, so a list of labels would keep only its first element. A
+  # binary that was not built keeps its labels too, so a labelled stage cannot pass by running
+  # nothing.
+  set(labels_file "${CMAKE_CURRENT_BINARY_DIR}/${ARG_NAME}_labels.cmake")
+  file(WRITE "${labels_file}"
+    "if(DEFINED ${ARG_NAME}_TESTS)\n"
+    "  set_tests_properties(\${${ARG_NAME}_TESTS} PROPERTIES LABELS \"${ARG_LABELS}\")\n"
+    "else()\n"
+    "  set_tests_properties(${ARG_NAME}_NOT_BUILT PROPERTIES LABELS \"${ARG_LABELS}\")\n"
+    "endif()\n")
+  set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES "${labels_file}")
 endfunction()
