@@ -3,8 +3,9 @@
 #   sl_configure DIR [CMAKE_ARGS...]   cmake -G Ninja, ccache as the compiler launcher (when present),
 #                                      unity build, line-table debug info (-g1)
 #   sl_build DIR [TARGET...]           ninja with a progress line: [done/total elapsed]
-# Unity build (CMake batches of 8 files per compile; SL_UNITY=OFF turns it off): each batch parses
-# the heavy headers (Eigen, OpenCV, Ceres, fmt) once, 1.5x less compile time. -g1 keeps line tables
+# Unity build (batches of 8 files per compile, cmake/SparseloopUnity.cmake; SL_UNITY=OFF turns it
+# off): each batch parses the heavy headers (Eigen, OpenCV, Ceres, fmt) once, 1.5x less compile
+# time; the batches include their files by relative paths, so ccache serves another clone too. -g1 keeps line tables
 # (backtraces, sanitizer reports, perf) without the full debug info, 1.3x less compile time;
 # configure a build of your own without these for a debugger session.
 # ccache: the cache lives in $CCACHE_DIR (default ~/.cache/ccache) and survives between runs and
@@ -23,7 +24,7 @@ else
   SL_LAUNCHER=()
 fi
 
-SL_COMMON=(-DCMAKE_UNITY_BUILD="${SL_UNITY:-ON}" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG"
+SL_COMMON=(-DSPARSELOOP_UNITY="${SL_UNITY:-ON}" -DCMAKE_UNITY_BUILD=OFF -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG"
   -DCMAKE_CXX_FLAGS_DEBUG="-g1")
 
 sl_configure() {
