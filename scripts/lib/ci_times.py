@@ -3,7 +3,8 @@
 
 Reads LOGS/stages.tsv (stage, seconds, status: one line per stage, written by scripts/test) and
 LOGS/<stage>.junit.xml (ctest --output-junit) for the test count and the 20 slowest tests of each
-ctest stage. Usage: ci_times.py LOGS_DIR
+ctest stage, and LOGS/<stage>.ccache.before / .after (ccache --print-stats) for the compiles the
+cache served in each stage. Usage: ci_times.py LOGS_DIR
 """
 import sys
 import xml.etree.ElementTree as ET
@@ -12,6 +13,27 @@ from pathlib import Path
 
 def minutes(seconds: float) -> str:
     return f"{int(seconds) // 60}:{int(seconds) % 60:02d}"
+
+
+def ccache_counts(logs: Path, name: str) -> str:
+    """'hits / compiles' of the stage from ccache's counters before and after it, '' if none."""
+    def read(suffix):
+        path = logs / f"{name}.ccache.{suffix}"
+        if not path.exists():
+            return None
+        counters = {}
+        for line in path.read_text().splitlines():
+            key, _, value = line.partition("\t")
+            if value.strip().isdigit():
+                counters[key] = int(value)
+        return counters
+    before, after = read("before"), read("after")
+    if before is None or after is None:
+        return ""
+    diff = {k: after.get(k, 0) - before.get(k, 0) for k in after}
+    hits = diff.get("direct_cache_hit", 0) + diff.get("preprocessed_cache_hit", 0)
+    compiles = hits + diff.get("cache_miss", 0)
+    return f"{hits} / {compiles}" if compiles else ""
 
 
 def main() -> int:
@@ -24,7 +46,8 @@ def main() -> int:
         name, seconds, status = line.split("\t")
         stages.append((name, int(seconds), status))
     out = ["# scripts/test: time per stage", "",
-           "| stage | time (m:ss) | status | tests | failed |", "|---|---|---|---|---|"]
+           "| stage | time (m:ss) | status | tests | failed | ccache hits / compiles |",
+           "|---|---|---|---|---|---|"]
     slowest = []
     for name, seconds, status in stages:
         junit = logs / f"{name}.junit.xml"
@@ -38,9 +61,10 @@ def main() -> int:
             failed = str(sum(1 for c in cases if c[2]))
             cases.sort(reverse=True)
             slowest.append((name, cases[:20]))
-        out.append(f"| {name} | {minutes(seconds)} | {status} | {tests} | {failed} |")
+        out.append(f"| {name} | {minutes(seconds)} | {status} | {tests} | {failed} | "
+                   f"{ccache_counts(logs, name)} |")
     total = sum(s[1] for s in stages)
-    out.append(f"| **total** | **{minutes(total)}** | | | |")
+    out.append(f"| **total** | **{minutes(total)}** | | | | |")
     for name, cases in slowest:
         out += ["", f"## {name}: the 20 slowest tests", "", "| s | test |", "|---|---|"]
         out += [f"| {t:.1f} | {n}{' (FAILED)' if f else ''} |" for t, n, f in cases]
