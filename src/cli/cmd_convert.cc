@@ -28,6 +28,7 @@ int RunConvert(int argc, char** argv) {
                "keep the first of repeated timestamps / frame indices instead of failing");
   Parse(app, argc, argv);
   CheckOutputFileFlag("--out", out);
+  CheckOutputsAreNotInputs({{"--out", out}}, {{"--in", in}});
 
   const TrajectoryFormat in_format = ParseTrajectoryFormat(from);
   const TrajectoryFormat out_format = ParseTrajectoryFormat(to);

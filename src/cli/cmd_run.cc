@@ -68,6 +68,12 @@ void AddRunFlags(CLI::App& app, RunFlags* f) {
 // Checked now, not after the run.
 void CheckRunFlags(const RunFlags& f) {
   CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
+  std::vector<NamedPath> inputs = {{"--config", f.detector.config},
+                                   {"--poses", f.detector.poses},
+                                   {"--gt", f.gt_path},
+                                   {"--odometry-covariance", f.covariance_path}};
+  for (const NamedPath& map : MapFiles("--map", f.map_path)) inputs.push_back(map);
+  CheckOutputsAreNotInputs(FilesIn("--out", f.detector.out, kRunOutputFiles), inputs);
   if (f.gt_min_path && !(std::isfinite(*f.gt_min_path) && *f.gt_min_path >= 0.0)) {
     throw std::invalid_argument(
         fmt::format("--gt-min-path must be a path length >= 0, got {}", *f.gt_min_path));
@@ -245,7 +251,7 @@ int RunRun(int argc, char** argv) {
       [&](const PipelineProgress& p) { progress.Update(p.frames_done, p.frames_total, p.loops); });
   progress.Finish();
 
-  const std::filesystem::path out = flags.out;
+  const std::filesystem::path out = ResolvedPath(flags.out);  // DIR/missing/.. is DIR
   std::filesystem::create_directories(out);
   WriteTrajectory(out / "trajectory.txt", result.corrected, TrajectoryFormat::kTum);
   WriteTrajectory(out / "trajectory_kitti.txt", result.corrected, TrajectoryFormat::kKitti);
@@ -306,7 +312,7 @@ int RunRun(int argc, char** argv) {
 
   PrintRunSummary(std::cout, summary, eval_raw ? &*eval_raw : nullptr,
                   eval_corrected ? &*eval_corrected : nullptr);
-  std::cout << "wrote " << (out / "trajectory.txt").string() << ", trajectory_kitti.txt, "
+  std::cout << "wrote " << (std::filesystem::path(flags.out) / "trajectory.txt").string() << ", trajectory_kitti.txt, "
             << "loops.csv, summary.json\n";
   return 0;
 }
