@@ -78,12 +78,12 @@ uint64_t CellKey(int64_t ix, int64_t iy) {
   return (static_cast<uint64_t>(ix) << 32) ^ (static_cast<uint64_t>(iy) & 0xffffffffULL);
 }
 
-// Uniform grid hash in the plane: keyframes in their cell, segment k (from keyframe k-1 to k)
-// in every cell of its bounding box dilated by one cell, so that a ray sampled every half cell
-// finds every segment it crosses despite rounding.
 // The finest grid a SearchArea builds: cells per side of the trajectory's extent.
 constexpr double kMaxCellsPerSide = 256.0;
 
+// Uniform grid hash in the plane: keyframes in their cell, segment k (from keyframe k-1 to k)
+// in every cell of its bounding box dilated by one cell, so that a ray sampled every half cell
+// finds every segment it crosses despite rounding.
 class Grid {
  public:
   void Reset(double cell_size) {

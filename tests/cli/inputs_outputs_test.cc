@@ -22,12 +22,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void Write(const fs::path& path, const std::string& text) {
+// `text` as the file at `path`, its folder created (Write of convert_test.cc does not create it).
+void WriteCreatingFolder(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());
   std::ofstream(path, std::ios::binary) << text;
 }
@@ -56,9 +52,9 @@ void ExpectExit2Naming(const CliResult& r, const std::vector<std::string>& parts
 // each input, links and `..` resolved, before reading anything.
 TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
   const auto dir = TempDir();
-  Write(dir / "g.txt", Tum(1.0));
+  WriteCreatingFolder(dir / "g.txt", Tum(1.0));
   const std::string gt = (dir / "g.txt").string();
-  const std::string before = Slurp(gt);
+  const std::string before = ReadText(gt);
   fs::create_symlink(gt, dir / "link.json");
   for (const std::string json : {gt, (dir / "link.json").string(), (dir / "x/../g.txt").string()}) {
     ExpectExit2Naming(RunCli({"eval", "--gt", gt, "--est", gt, "--json", json}),
@@ -70,7 +66,7 @@ TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
   ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses",
                             gt, "--gt", (dir / "trajectory.txt").string(), "--out", out}),
                     {"--out " + (dir / "trajectory.txt").string(), "--gt"});
-  Write(dir / "trajectory.txt", "gt kept\n");
+  WriteCreatingFolder(dir / "trajectory.txt", "gt kept\n");
   ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses",
                             (dir / "poses_raw.txt").string(), "--out", out}),
                     {"--out", "poses_raw.txt", "--poses"});
@@ -79,15 +75,15 @@ TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
                     {"--out", "loops.csv", "--map"});
   ExpectExit2Naming(RunCli({"convert", "--in", gt, "--out", gt, "--to", "kitti"}),
                     {"--out " + gt, "--in " + gt});
-  Write(dir / "g.g2o", "VERTEX_SE2 0 0 0 0\n");
+  WriteCreatingFolder(dir / "g.g2o", "VERTEX_SE2 0 0 0 0\n");
   ExpectExit2Naming(RunCli({"optimize", "--g2o", (dir / "g.g2o").string(), "--out",
                             (dir / "g.g2o").string()}),
                     {"--out", "--g2o"});
   ExpectExit2Naming(RunCli({"render", "--world", "street", "--trajectory",
                             (dir / "poses_gt.txt").string(), "--out", out}),
                     {"--out", "poses_gt.txt", "--trajectory"});
-  EXPECT_EQ(Slurp(gt), before);
-  EXPECT_EQ(Slurp(dir / "trajectory.txt"), "gt kept\n");
+  EXPECT_EQ(ReadText(gt), before);
+  EXPECT_EQ(ReadText(dir / "trajectory.txt"), "gt kept\n");
 }
 
 // `--out DIR/missing/..` is DIR: it bypassed the guard against a folder of other files and
@@ -96,13 +92,13 @@ TEST(CliInputsKept, OutThroughAMissingFolderAndDotDotIsGuardedAsTheFolderItNames
   const fs::path& seq = RenderedLoopSequence();
   ASSERT_FALSE(seq.empty());
   const auto dir = TempDir();
-  Write(dir / "notes.txt", "mine\n");
-  Write(dir / "trajectory.txt", "mine too\n");
+  WriteCreatingFolder(dir / "notes.txt", "mine\n");
+  WriteCreatingFolder(dir / "trajectory.txt", "mine too\n");
   const std::string out = (dir / "missing" / "..").string();
   const CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
                               (seq / "poses_raw.txt").string(), "--out", out, "--quiet"});
   ExpectExit2Naming(r, {"--out " + out, "expected an empty folder"});
-  EXPECT_EQ(Slurp(dir / "trajectory.txt"), "mine too\n");
+  EXPECT_EQ(ReadText(dir / "trajectory.txt"), "mine too\n");
   EXPECT_FALSE(fs::exists(dir / "missing"));
 }
 
@@ -132,19 +128,19 @@ TEST(CliConfig, DuplicateKeysFoldersAndBadValuesNameTheFileLineAndKeyPath) {
     return RunCli({"run", "--dataset", images, "--poses", (dir / "p.txt").string(), "--config",
                    config.string(), "--out", (dir / "out").string()});
   };
-  Write(dir / "dup.json",
+  WriteCreatingFolder(dir / "dup.json",
         "{\n  \"detector\": {\n    \"check_every\": 1,\n    \"check_every\": 2\n  }\n}\n");
   ExpectExit2Naming(run(dir / "dup.json"),
                     {(dir / "dup.json").string() + ":4:", "\"detector.check_every\" a second time"});
   fs::create_directories(dir / "cfg_dir");
   ExpectExit2Naming(run(dir / "cfg_dir"), {(dir / "cfg_dir").string(), "got a directory"});
-  Write(dir / "bad.json",
+  WriteCreatingFolder(dir / "bad.json",
         "{\"odometry\": {\"rotation_sigma_rad\": 0.01},\n"
         " \"direction_loop\": {\"rotation_sigma_rad\": -1}}\n");
   ExpectExit2Naming(run(dir / "bad.json"),
                     {(dir / "bad.json").string(), "\"direction_loop.rotation_sigma_rad\""});
   // The same keys in separate objects are not duplicates; a BOM is accepted.
-  Write(dir / "ok.json", "\xEF\xBB\xBF{\"odometry\": {\"rotation_sigma_rad\": 0.01},"
+  WriteCreatingFolder(dir / "ok.json", "\xEF\xBB\xBF{\"odometry\": {\"rotation_sigma_rad\": 0.01},"
                          " \"direction_loop\": {\"rotation_sigma_rad\": 0.02}}\n");
   const CliResult ok = run(dir / "ok.json");
   EXPECT_EQ(ok.err.find("ok.json"), std::string::npos) << ok.err;  // fails later, on the dataset
@@ -154,8 +150,8 @@ TEST(CliConfig, DuplicateKeysFoldersAndBadValuesNameTheFileLineAndKeyPath) {
 // the file's line are named before any frame.
 TEST(CliMessages, HugeIntrinsicsAndPosesNameTheFlagOrTheLine) {
   const auto dir = TempDir();
-  Write(dir / "p.txt", "0 0 0 0 0 0 0 1\n1 1e200 0 0 0 0 0 1\n");
-  Write(dir / "images" / "0.png", "");
+  WriteCreatingFolder(dir / "p.txt", "0 0 0 0 0 0 0 1\n1 1e200 0 0 0 0 0 1\n");
+  WriteCreatingFolder(dir / "images" / "0.png", "");
   ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "images").string(), "--poses",
                             (dir / "p.txt").string(), "--intrinsics", "1e308,1e308,16,16",
                             "--out", (dir / "out").string()}),
@@ -169,10 +165,10 @@ TEST(CliMessages, HugeIntrinsicsAndPosesNameTheFlagOrTheLine) {
 // alignment (it printed "degenerate" and an ATE of 2e31 m at x 1e30, inf / nan at x 1e200).
 TEST(CliEval, AnEstimateAtAnyScaleAlignsExactly) {
   const auto dir = TempDir();
-  Write(dir / "gt.txt", Tum(1.0));
+  WriteCreatingFolder(dir / "gt.txt", Tum(1.0));
   for (const double scale : {1e-9, 1e12}) {
     SCOPED_TRACE(scale);
-    Write(dir / "est.txt", Tum(scale));
+    WriteCreatingFolder(dir / "est.txt", Tum(scale));
     const CliResult r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est",
                                 (dir / "est.txt").string(), "--json",
                                 (dir / "m.json").string()});
@@ -191,7 +187,7 @@ TEST(CliEval, ByteOrderMarkAndCrOnlyFilesReadEveryPose) {
   std::string cr = Tum(1.0);
   for (char& c : cr)
     if (c == '\n') c = '\r';
-  Write(dir / "cr.txt", "\xEF\xBB\xBF" + cr);
+  WriteCreatingFolder(dir / "cr.txt", "\xEF\xBB\xBF" + cr);
   const CliResult r = RunCli({"eval", "--gt", (dir / "cr.txt").string(), "--est",
                               (dir / "cr.txt").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -212,11 +208,11 @@ TEST(CliMessages, LinkLoopsFilesAndDevicesSayWhatThePathIs) {
   };
   ExpectExit2Naming(images("images:" + (dir / "images").string()),
                     {(dir / "images" / "0.png").string(), "symbolic links"});
-  Write(dir / "file.txt", "x");
+  WriteCreatingFolder(dir / "file.txt", "x");
   ExpectExit2Naming(images("images:" + (dir / "file.txt").string()),
                     {(dir / "file.txt").string(), "got a regular file"});
   fs::remove(dir / "images" / "0.png");
-  Write(dir / "images" / "0.png", "");
+  WriteCreatingFolder(dir / "images" / "0.png", "");
   ExpectExit2Naming(images("images:" + (dir / "images").string(), {"--map", "/dev/null"}),
                     {"/dev/null: expected a map database file", "a device"});
 }
