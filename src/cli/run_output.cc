@@ -296,10 +296,19 @@ ImageNames ImageNamesByFrame(const Dataset& dataset) {
   return names;
 }
 
+// `text` as one CSV field (RFC 4180): quoted, with its quotes doubled, when it holds a comma, a
+// quote or a line end (an image named "a,b.png" must not add a column for `eval --loops`).
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
 std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
   const auto name = [&](int64_t frame) {
     const auto it = images.find(frame);
-    return it == images.end() ? std::string() : it->second;
+    return it == images.end() ? std::string() : CsvField(it->second);
   };
   return "," + name(loop.query_id) + "," + (loop.match_session == 0 ? name(loop.match_id) : "");
 }

@@ -2,8 +2,8 @@
 
 #include <cerrno>
 #include <charconv>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <system_error>
@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/text_lines.h"
 
 namespace sparseloop::io_internal {
 
@@ -30,19 +31,8 @@ TextFile::TextFile(const std::filesystem::path& path) : name_(path.string()) {
   buffer << in.rdbuf();
   if (in.bad()) throw FileError(name_, 0, "a readable file", "read error");
   content_ = buffer.str();
-  std::string_view all(content_);
-  // A UTF-8 byte order mark (what some Windows editors put first) is not part of the first line.
-  if (all.substr(0, 3) == "\xEF\xBB\xBF") all.remove_prefix(3);
-  // Lines end with "\n" (Unix), "\r\n" (Windows) or a lone "\r" (classic Mac OS).
   int number = 1;
-  size_t start = 0;
-  while (start < all.size()) {
-    size_t end = all.find_first_of("\r\n", start);
-    if (end == std::string_view::npos) end = all.size();
-    lines_.push_back({number, all.substr(start, end - start)});
-    ++number;
-    start = end + (all.substr(end, 2) == "\r\n" ? 2 : 1);
-  }
+  for (const std::string_view line : SplitLines(content_)) lines_.push_back({number++, line});
 }
 
 std::vector<TextLine> TextFile::DataLines() const {
