@@ -140,9 +140,9 @@ void AddFeatureKeys(KeyList& k) {
   k.Add(f + "orb_candidates", SL_FIELD(detector.features.orb_candidates), "features",
         "ORB detections before ranking (>= K)");
   k.Add(f + "orb_levels", SL_FIELD(detector.features.orb_levels), "levels",
-        "ORB pyramid levels (>= 1)");
+        "ORB pyramid levels ([1, 16])");
   k.Add(f + "orb_scale_factor", SL_FIELD(detector.features.orb_scale_factor), "ratio",
-        "ORB pyramid scale step (> 1)");
+        "ORB pyramid scale step (1, 2]");
   k.Add(f + "orb_fast_threshold", SL_FIELD(detector.features.orb_fast_threshold), "grey levels",
         "FAST threshold");
   k.AddEnum(
@@ -160,7 +160,7 @@ void AddFeatureKeys(KeyList& k) {
   k.Add(f + "gradient.threshold_offset", SL_FIELD(detector.features.gradient.threshold_offset),
         "grey levels", "gradient mask: selected when |grad| > block median + offset");
   k.Add(f + "gradient.dilate_radius", SL_FIELD(detector.features.gradient.dilate_radius), "px",
-        "gradient mask: dilation of the selection");
+        "gradient mask: dilation of the selection [0, 64]");
 }
 
 // detector.search.*: the search area.
@@ -208,7 +208,7 @@ void AddSearchKeys(KeyList& k) {
 void AddMatchingKeys(KeyList& k) {
   const std::string m = "detector.match.";
   k.Add(m + "max_distance", SL_FIELD(detector.match.max_distance), "bits",
-        "largest accepted Hamming distance (of 256)");
+        "largest accepted Hamming distance [0, 256]");
   k.Add(m + "ratio", SL_FIELD(detector.match.ratio), "ratio",
         "best < ratio x second best, (0, 1] (1: no ratio test)");
   k.Add(m + "mutual", SL_FIELD(detector.match.mutual), "",
@@ -220,9 +220,9 @@ void AddMatchingKeys(KeyList& k) {
   k.Add(v + "confidence", SL_FIELD(detector.verify.confidence), "probability",
         "RANSAC confidence (0, 1)");
   k.Add(v + "max_iterations", SL_FIELD(detector.verify.max_iterations), "iterations",
-        "RANSAC iterations (>= 1)");
+        "RANSAC iterations ([1, 100000])");
   k.Add(v + "local_optimization_rounds", SL_FIELD(detector.verify.local_optimization_rounds),
-        "rounds", "essential matrix: local optimisation rounds after RANSAC (>= 0)");
+        "rounds", "essential matrix: local optimisation rounds after RANSAC [0, 100]");
   k.Add(v + "min_inliers", SL_FIELD(detector.verify.min_inliers), "inliers",
         "a pair with fewer geometric inliers fails");
   k.Add(v + "min_inlier_ratio", SL_FIELD(detector.verify.min_inlier_ratio), "ratio",
@@ -378,13 +378,13 @@ void AddDetectorPolicyKeys(KeyList& k) {
 // detector.ann.* (the approximate index) and detector.seed.
 void AddAnnKeys(KeyList& k) {
   const std::string a = "detector.ann.";
-  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node (>= 2)");
+  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node ([2, 256])");
   k.Add(a + "ef_construction", SL_FIELD(detector.ann.ef_construction), "candidates",
-        "HNSW candidate list while inserting (>= 1)");
+        "HNSW candidate list while inserting ([1, 4096])");
   k.Add(a + "ef_search", SL_FIELD(detector.ann.ef_search), "candidates",
-        "HNSW candidate list while searching (>= neighbors)");
+        "HNSW candidate list while searching (>= neighbors, at most 4096)");
   k.Add(a + "neighbors", SL_FIELD(detector.ann.neighbors), "descriptors",
-        "nearest stored descriptors per query descriptor (>= 1)");
+        "nearest stored descriptors per query descriptor ([1, 256])");
   k.Add(a + "max_distance", SL_FIELD(detector.ann.max_distance), "bits",
         "a farther neighbour votes for nothing [0, 256]");
   k.Add(a + "max_candidates", SL_FIELD(detector.ann.max_candidates), "keyframes",
