@@ -55,8 +55,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   const auto path = sparseloop::fuzz::WriteInput(data, size, "trajectory.txt");
   const auto write = [](const std::string& s, const std::string& name) {
-    return sparseloop::fuzz::WriteInput(reinterpret_cast<const uint8_t*>(s.data()), s.size(),
-                                        name);
+    return sparseloop::fuzz::WriteInput(reinterpret_cast<const uint8_t*>(s.data()), s.size(), name);
   };
   const std::string lf = WithLineEnds(text, "\n");
   const auto lf_path = write(lf, "lf.txt");

@@ -88,9 +88,10 @@ nlohmann::json FromPython(const py::object& o, const std::string& argument) {
   try {
     text = py::module_::import("json").attr("dumps")(o).cast<std::string>();
   } catch (py::error_already_set& e) {
-    throw std::invalid_argument(fmt::format("{}: expected a dict of config keys (numbers, "
-                                            "strings, booleans, lists, dicts), got {}",
-                                            argument, e.what()));
+    throw std::invalid_argument(
+        fmt::format("{}: expected a dict of config keys (numbers, "
+                    "strings, booleans, lists, dicts), got {}",
+                    argument, e.what()));
   }
   return nlohmann::json::parse(text);
 }
@@ -110,8 +111,8 @@ Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::f
     for (py::ssize_t c = 0; c < 4; ++c)
       if (!std::isfinite(m.at(r, c)))
         throw std::invalid_argument(fmt::format("{}: entry ({}, {}) is not finite", name, r, c));
-  if (m.shape(0) == 4 && !(m.at(3, 0) == 0.0 && m.at(3, 1) == 0.0 && m.at(3, 2) == 0.0 &&
-                           m.at(3, 3) == 1.0)) {
+  if (m.shape(0) == 4 &&
+      !(m.at(3, 0) == 0.0 && m.at(3, 1) == 0.0 && m.at(3, 2) == 0.0 && m.at(3, 3) == 1.0)) {
     throw std::invalid_argument(fmt::format(
         "{}: expected a 4x4 pose with last row [0, 0, 0, 1] (world_from_cam = [sR t; 0 1]), got "
         "[{}, {}, {}, {}] (a transposed matrix? pass pose.T)",
@@ -124,11 +125,12 @@ Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::f
     t(r) = m.at(r, 3);
   }
   if (t.cwiseAbs().maxCoeff() > kMaxCoordinate)
-    throw std::invalid_argument(fmt::format("{}: translation beyond +-{:g}, got ({}, {}, {})",
-                                            name, kMaxCoordinate, t.x(), t.y(), t.z()));
+    throw std::invalid_argument(fmt::format("{}: translation beyond +-{:g}, got ({}, {}, {})", name,
+                                            kMaxCoordinate, t.x(), t.y(), t.z()));
   const double det = sr.determinant();
   if (!(det > 0.0) || !std::isfinite(det))
-    throw std::invalid_argument(name + ": a pose's rotation block must have a positive determinant");
+    throw std::invalid_argument(name +
+                                ": a pose's rotation block must have a positive determinant");
   const double scale = std::cbrt(det);
   const Eigen::Matrix3d r = sr / scale;
   const double deviation = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
@@ -152,7 +154,8 @@ std::optional<Sim3d> PoseFromPython(const py::object& o, const std::string& name
     const auto r = s[0].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     const auto t = s[1].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     if (r.ndim() != 2 || r.shape(0) != 3 || r.shape(1) != 3 || t.size() != 3)
-      throw std::invalid_argument(name + ": a pose tuple needs R of shape (3, 3) and t of 3 values");
+      throw std::invalid_argument(name +
+                                  ": a pose tuple needs R of shape (3, 3) and t of 3 values");
     py::array_t<double> m({4, 4});
     auto w = m.mutable_unchecked<2>();
     const double scale = s.size() == 3 ? s[2].cast<double>() : 1.0;

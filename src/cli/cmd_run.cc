@@ -312,8 +312,8 @@ int RunRun(int argc, char** argv) {
 
   PrintRunSummary(std::cout, summary, eval_raw ? &*eval_raw : nullptr,
                   eval_corrected ? &*eval_corrected : nullptr);
-  std::cout << "wrote " << (std::filesystem::path(flags.out) / "trajectory.txt").string() << ", trajectory_kitti.txt, "
-            << "loops.csv, summary.json\n";
+  std::cout << "wrote " << (std::filesystem::path(flags.out) / "trajectory.txt").string()
+            << ", trajectory_kitti.txt, loops.csv, summary.json\n";
   return 0;
 }
 

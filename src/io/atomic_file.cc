@@ -155,8 +155,7 @@ void CheckOutputDirectory(const fs::path& dir, const std::vector<std::string>& f
   const std::string name = dir.string();
   if (dir.empty()) throw FileError(name, 0, "an output directory", "an empty path");
   for (const std::string& file : file_names) {
-    if (const std::string problem = LengthProblem(dir / file, kTemporarySuffix);
-        !problem.empty()) {
+    if (const std::string problem = LengthProblem(dir / file, kTemporarySuffix); !problem.empty()) {
       throw FileError(name, 0, "a path the file system accepts", problem + " for " + file);
     }
   }

@@ -335,9 +335,10 @@ Trajectory ReadPositions(const TextFile& file, const TrajectoryReadOptions& opti
                      "positions: frame x y z ..., same count as the first data line");
     StampedPose pose;
     pose.frame = ParseInt64(t[0], name, line.number, "frame index");
-    pose.world_from_cam.translation = Eigen::Vector3d(ParseCoordinate(t[1], name, line.number, "x"),
-                                                      ParseCoordinate(t[2], name, line.number, "y"),
-                                                      ParseCoordinate(t[3], name, line.number, "z"));
+    pose.world_from_cam.translation =
+        Eigen::Vector3d(ParseCoordinate(t[1], name, line.number, "x"),
+                        ParseCoordinate(t[2], name, line.number, "y"),
+                        ParseCoordinate(t[3], name, line.number, "z"));
     for (size_t i = 4; i < t.size(); ++i) {
       ParseDouble(t[i], name, line.number, fmt::format("column {}", i + 1));
     }

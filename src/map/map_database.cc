@@ -236,9 +236,9 @@ std::string MapPathProblem(const std::filesystem::path& path) {
     return fmt::format("expected a map database file, got {}", ec.message());
   }
   if (status.type() != fs::file_type::not_found && status.type() != fs::file_type::regular) {
-    return fmt::format("expected a map database file (a regular file or a new file name), got {}",
-                       status.type() == fs::file_type::directory ? "a directory"
-                                                                 : "a device, FIFO or socket");
+    return fmt::format(
+        "expected a map database file (a regular file or a new file name), got {}",
+        status.type() == fs::file_type::directory ? "a directory" : "a device, FIFO or socket");
   }
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec)) {

@@ -664,10 +664,10 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
     options->Check();
   } catch (const std::invalid_argument& e) {
     const std::string key = BlamedKey(config, *options, e.what());
-    throw FileError(source, 0,
-                    key.empty() ? "valid option values"
-                                : fmt::format("a valid value for \"{}\"", key),
-                    e.what());
+    throw FileError(
+        source, 0,
+        key.empty() ? "valid option values" : fmt::format("a valid value for \"{}\"", key),
+        e.what());
   }
 }
 void ApplyConfigOverride(const std::string& key, const std::string& value,
@@ -724,8 +724,7 @@ int LineAt(const std::string& text, size_t offset) {
 // written with escapes).
 int LineOfKey(const std::string& text, const std::string& key, size_t n) {
   const std::string quoted = "\"" + key + "\"";
-  for (size_t pos = text.find(quoted); pos != std::string::npos;
-       pos = text.find(quoted, pos + 1)) {
+  for (size_t pos = text.find(quoted); pos != std::string::npos; pos = text.find(quoted, pos + 1)) {
     const size_t after = text.find_first_not_of(" \t\r\n", pos + quoted.size());
     if (after == std::string::npos || text[after] != ':') continue;
     if (n-- == 0) return LineAt(text, pos);
@@ -737,38 +736,35 @@ int LineOfKey(const std::string& text, const std::string& key, size_t n) {
 // would silently win): FileError with the key's dotted path and the line of the repeat.
 nlohmann::json ParseWithoutDuplicateKeys(const std::string& text, const std::string& name) {
   std::vector<std::pair<std::string, std::set<std::string>>> objects;  // path, keys seen
-  std::map<std::string, size_t> seen_anywhere;                          // key -> occurrences
+  std::map<std::string, size_t> seen_anywhere;                         // key -> occurrences
   std::string last_key;
-  const nlohmann::json::parser_callback_t check = [&](int /*depth*/,
-                                                      nlohmann::json::parse_event_t event,
-                                                      nlohmann::json& parsed) {
-    using Event = nlohmann::json::parse_event_t;
-    if (event == Event::object_start) {
-      const std::string parent = objects.empty() ? "" : objects.back().first;
-      const std::string path =
-          objects.empty() || last_key.empty() ? parent
-          : parent.empty()                    ? last_key
-                                              : parent + "." + last_key;
-      objects.push_back({path, {}});
-      last_key.clear();
-    } else if (event == Event::object_end) {
-      if (!objects.empty()) objects.pop_back();
-      last_key.clear();
-    } else if (event == Event::key && parsed.is_string()) {
-      last_key = parsed.get<std::string>();
-      const size_t occurrence = seen_anywhere[last_key]++;
-      if (!objects.empty() && !objects.back().second.insert(last_key).second) {
-        const std::string& parent = objects.back().first;
-        throw FileError(name, LineOfKey(text, last_key, occurrence),
-                        "each key once per object",
-                        fmt::format("\"{}\" a second time",
-                                    parent.empty() ? last_key : parent + "." + last_key));
-      }
-    } else if (event == Event::array_start || event == Event::value) {
-      last_key.clear();
-    }
-    return true;
-  };
+  const nlohmann::json::parser_callback_t check =
+      [&](int /*depth*/, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        using Event = nlohmann::json::parse_event_t;
+        if (event == Event::object_start) {
+          const std::string parent = objects.empty() ? "" : objects.back().first;
+          const std::string path = objects.empty() || last_key.empty() ? parent
+                                   : parent.empty()                    ? last_key
+                                                                       : parent + "." + last_key;
+          objects.push_back({path, {}});
+          last_key.clear();
+        } else if (event == Event::object_end) {
+          if (!objects.empty()) objects.pop_back();
+          last_key.clear();
+        } else if (event == Event::key && parsed.is_string()) {
+          last_key = parsed.get<std::string>();
+          const size_t occurrence = seen_anywhere[last_key]++;
+          if (!objects.empty() && !objects.back().second.insert(last_key).second) {
+            const std::string& parent = objects.back().first;
+            throw FileError(name, LineOfKey(text, last_key, occurrence), "each key once per object",
+                            fmt::format("\"{}\" a second time",
+                                        parent.empty() ? last_key : parent + "." + last_key));
+          }
+        } else if (event == Event::array_start || event == Event::value) {
+          last_key.clear();
+        }
+        return true;
+      };
   return nlohmann::json::parse(text, check);
 }
 

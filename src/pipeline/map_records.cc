@@ -70,8 +70,8 @@ void WarnAboutOtherK(const MapDatabase& map, int64_t session, const std::vector<
                      int features) {
   size_t most = 0;
   for (const KeyframeRecord& k : r) most = std::max(most, k.size());
-  if (most == 0 || (most * 2 >= static_cast<size_t>(features) &&
-                    most <= 2 * static_cast<size_t>(features))) {
+  if (most == 0 ||
+      (most * 2 >= static_cast<size_t>(features) && most <= 2 * static_cast<size_t>(features))) {
     return;
   }
   Logger().warn(

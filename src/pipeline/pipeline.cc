@@ -29,8 +29,7 @@ void PipelineOptions::Check() const {
   SL_CHECK_MSG(optimizer.num_threads <= kMaxThreads, "num_threads must be in [1, {}], got {}",
                kMaxThreads, optimizer.num_threads);
   SL_CHECK_MSG(detector.ann.num_threads <= kMaxThreads,
-               "ann.num_threads must be in [1, {}], got {}", kMaxThreads,
-               detector.ann.num_threads);
+               "ann.num_threads must be in [1, {}], got {}", kMaxThreads, detector.ann.num_threads);
   odometry.Check();
   LoopEdgeOptions::Check();
   SL_CHECK_MSG(raw_association_max_dt > 0, "raw_association_max_dt must be > 0");

@@ -59,9 +59,9 @@ void NodeParams::Check() const {
     throw std::invalid_argument(fmt::format("~pose_buffer must be >= 1, got {}", pose_buffer));
   }
   // The output files are checked now, not at finish, when the session's work would be lost.
-  for (const auto& [name, path] : {std::pair<const char*, const std::string&>{"~trajectory_file",
-                                                                              trajectory_file},
-                                   {"~loops_file", loops_file}}) {
+  for (const auto& [name, path] :
+       {std::pair<const char*, const std::string&>{"~trajectory_file", trajectory_file},
+        {"~loops_file", loops_file}}) {
     if (path.empty()) continue;
     try {
       CheckOutputFile(path);

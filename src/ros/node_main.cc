@@ -19,8 +19,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <iomanip>
 #include <exception>
+#include <iomanip>
 #include <memory>
 #include <set>
 #include <sstream>
@@ -71,13 +71,12 @@ int IntParam(ros::NodeHandle& pnh, const std::string& name, int fallback, int lo
   if (!pnh.getParam(name, v)) return fallback;
   const bool is_int = v.getType() == XmlRpc::XmlRpcValue::TypeInt;
   const bool is_double = v.getType() == XmlRpc::XmlRpcValue::TypeDouble;
-  const double d = is_int ? static_cast<double>(static_cast<int>(v))
+  const double d = is_int      ? static_cast<double>(static_cast<int>(v))
                    : is_double ? static_cast<double>(v)
                                : 0.0;
   if (!(is_int || is_double) || d != std::floor(d) || d < lo || d > hi) {
     std::ostringstream message;
-    message << pnh.resolveName(name) << " must be an integer in [" << lo << ", " << hi
-            << "], got ";
+    message << pnh.resolveName(name) << " must be an integer in [" << lo << ", " << hi << "], got ";
     if (is_int || is_double) {
       message << std::fixed << std::setprecision(std::floor(d) == d ? 0 : 6) << d;
     } else {

@@ -375,7 +375,8 @@ TEST(RosbagDataset, BadBagsAndSpecsAreClearErrors) {
     bag.Image(kImage, 0.5, 4000000000u, 32, "mono8", 64, std::vector<uint8_t>(64 * 32, 0));
     bag.Close();
   }
-  expect_file_error(Spec(wide, fmt::format("image={}", kImage)), wide.string(), "got 4000000000x32");
+  expect_file_error(Spec(wide, fmt::format("image={}", kImage)), wide.string(),
+                    "got 4000000000x32");
   // Spec errors: unknown key, no image topic, a topic without '/'; no intrinsics anywhere.
   EXPECT_THROW(OpenDatasetSpec(Spec(fx.bags.mono, "image=/cam0/image_raw&imu=/imu")),
                std::invalid_argument);

@@ -33,9 +33,9 @@ std::string Tum(double scale, int n = 40) {
   std::string text;
   for (int i = 0; i < n; ++i) {
     const double a = 0.05 * i;
-    text += fmt::format("{} {} {} {} 0 0 {} {}\n", i * 0.1, scale * 10 * std::cos(a),
-                        scale * 10 * std::sin(a), scale * 0.1 * i, std::sin(a / 2),
-                        std::cos(a / 2));
+    text +=
+        fmt::format("{} {} {} {} 0 0 {} {}\n", i * 0.1, scale * 10 * std::cos(a),
+                    scale * 10 * std::sin(a), scale * 0.1 * i, std::sin(a / 2), std::cos(a / 2));
   }
   return text;
 }
@@ -63,8 +63,8 @@ TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
   // run / detect: a file of --out DIR that an input names (the check comes before the dataset is
   // even opened).
   const std::string out = dir.string();
-  ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses",
-                            gt, "--gt", (dir / "trajectory.txt").string(), "--out", out}),
+  ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses", gt,
+                            "--gt", (dir / "trajectory.txt").string(), "--out", out}),
                     {"--out " + (dir / "trajectory.txt").string(), "--gt"});
   WriteCreatingFolder(dir / "trajectory.txt", "gt kept\n");
   ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses",
@@ -76,9 +76,9 @@ TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
   ExpectExit2Naming(RunCli({"convert", "--in", gt, "--out", gt, "--to", "kitti"}),
                     {"--out " + gt, "--in " + gt});
   WriteCreatingFolder(dir / "g.g2o", "VERTEX_SE2 0 0 0 0\n");
-  ExpectExit2Naming(RunCli({"optimize", "--g2o", (dir / "g.g2o").string(), "--out",
-                            (dir / "g.g2o").string()}),
-                    {"--out", "--g2o"});
+  ExpectExit2Naming(
+      RunCli({"optimize", "--g2o", (dir / "g.g2o").string(), "--out", (dir / "g.g2o").string()}),
+      {"--out", "--g2o"});
   ExpectExit2Naming(RunCli({"render", "--world", "street", "--trajectory",
                             (dir / "poses_gt.txt").string(), "--out", out}),
                     {"--out", "poses_gt.txt", "--trajectory"});
@@ -109,13 +109,13 @@ TEST(CliOutputs, AnOverlongOutIsRefusedBeforeAnyWork) {
   fs::path deep = dir;
   for (int i = 0; i < 22; ++i) deep /= std::string(200, 'd');
   for (const char* command : {"run", "detect"}) {
-    ExpectExit2Naming(RunCli({command, "--dataset", "images:" + (dir / "none").string(),
-                              "--poses", (dir / "none.txt").string(), "--out", deep.string()}),
+    ExpectExit2Naming(RunCli({command, "--dataset", "images:" + (dir / "none").string(), "--poses",
+                              (dir / "none.txt").string(), "--out", deep.string()}),
                       {"--out", "characters"});
   }
-  ExpectExit2Naming(RunCli({"eval", "--gt", "g", "--est", "g", "--json",
-                            (dir / std::string(300, 'j')).string()}),
-                    {"--json", "characters"});
+  ExpectExit2Naming(
+      RunCli({"eval", "--gt", "g", "--est", "g", "--json", (dir / std::string(300, 'j')).string()}),
+      {"--json", "characters"});
 }
 
 // --config: a key given twice is an error with its line (JSON allows it; the last value silently
@@ -128,20 +128,22 @@ TEST(CliConfig, DuplicateKeysFoldersAndBadValuesNameTheFileLineAndKeyPath) {
     return RunCli({"run", "--dataset", images, "--poses", (dir / "p.txt").string(), "--config",
                    config.string(), "--out", (dir / "out").string()});
   };
-  WriteCreatingFolder(dir / "dup.json",
-        "{\n  \"detector\": {\n    \"check_every\": 1,\n    \"check_every\": 2\n  }\n}\n");
-  ExpectExit2Naming(run(dir / "dup.json"),
-                    {(dir / "dup.json").string() + ":4:", "\"detector.check_every\" a second time"});
+  WriteCreatingFolder(
+      dir / "dup.json",
+      "{\n  \"detector\": {\n    \"check_every\": 1,\n    \"check_every\": 2\n  }\n}\n");
+  ExpectExit2Naming(run(dir / "dup.json"), {(dir / "dup.json").string() + ":4:",
+                                            "\"detector.check_every\" a second time"});
   fs::create_directories(dir / "cfg_dir");
   ExpectExit2Naming(run(dir / "cfg_dir"), {(dir / "cfg_dir").string(), "got a directory"});
   WriteCreatingFolder(dir / "bad.json",
-        "{\"odometry\": {\"rotation_sigma_rad\": 0.01},\n"
-        " \"direction_loop\": {\"rotation_sigma_rad\": -1}}\n");
+                      "{\"odometry\": {\"rotation_sigma_rad\": 0.01},\n"
+                      " \"direction_loop\": {\"rotation_sigma_rad\": -1}}\n");
   ExpectExit2Naming(run(dir / "bad.json"),
                     {(dir / "bad.json").string(), "\"direction_loop.rotation_sigma_rad\""});
   // The same keys in separate objects are not duplicates; a BOM is accepted.
-  WriteCreatingFolder(dir / "ok.json", "\xEF\xBB\xBF{\"odometry\": {\"rotation_sigma_rad\": 0.01},"
-                         " \"direction_loop\": {\"rotation_sigma_rad\": 0.02}}\n");
+  WriteCreatingFolder(dir / "ok.json",
+                      "\xEF\xBB\xBF{\"odometry\": {\"rotation_sigma_rad\": 0.01},"
+                      " \"direction_loop\": {\"rotation_sigma_rad\": 0.02}}\n");
   const CliResult ok = run(dir / "ok.json");
   EXPECT_EQ(ok.err.find("ok.json"), std::string::npos) << ok.err;  // fails later, on the dataset
 }
@@ -153,12 +155,12 @@ TEST(CliMessages, HugeIntrinsicsAndPosesNameTheFlagOrTheLine) {
   WriteCreatingFolder(dir / "p.txt", "0 0 0 0 0 0 0 1\n1 1e200 0 0 0 0 0 1\n");
   WriteCreatingFolder(dir / "images" / "0.png", "");
   ExpectExit2Naming(RunCli({"run", "--dataset", "images:" + (dir / "images").string(), "--poses",
-                            (dir / "p.txt").string(), "--intrinsics", "1e308,1e308,16,16",
-                            "--out", (dir / "out").string()}),
+                            (dir / "p.txt").string(), "--intrinsics", "1e308,1e308,16,16", "--out",
+                            (dir / "out").string()}),
                     {"--intrinsics: fx must be at most"});
-  ExpectExit2Naming(RunCli({"eval", "--gt", (dir / "p.txt").string(), "--est",
-                            (dir / "p.txt").string()}),
-                    {(dir / "p.txt").string() + ":2: expected a coordinate within"});
+  ExpectExit2Naming(
+      RunCli({"eval", "--gt", (dir / "p.txt").string(), "--est", (dir / "p.txt").string()}),
+      {(dir / "p.txt").string() + ":2: expected a coordinate within"});
 }
 
 // eval with the estimate = GT x 1e12 (a monocular estimate's unit is arbitrary): an exact Sim(3)
@@ -170,8 +172,7 @@ TEST(CliEval, AnEstimateAtAnyScaleAlignsExactly) {
     SCOPED_TRACE(scale);
     WriteCreatingFolder(dir / "est.txt", Tum(scale));
     const CliResult r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est",
-                                (dir / "est.txt").string(), "--json",
-                                (dir / "m.json").string()});
+                                (dir / "est.txt").string(), "--json", (dir / "m.json").string()});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto j = ReadJson(dir / "m.json");
     EXPECT_EQ(j["alignment"]["status"], "ok") << j.dump(2);
@@ -188,8 +189,8 @@ TEST(CliEval, ByteOrderMarkAndCrOnlyFilesReadEveryPose) {
   for (char& c : cr)
     if (c == '\n') c = '\r';
   WriteCreatingFolder(dir / "cr.txt", "\xEF\xBB\xBF" + cr);
-  const CliResult r = RunCli({"eval", "--gt", (dir / "cr.txt").string(), "--est",
-                              (dir / "cr.txt").string()});
+  const CliResult r =
+      RunCli({"eval", "--gt", (dir / "cr.txt").string(), "--est", (dir / "cr.txt").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("(40 poses"), std::string::npos) << r.out;
 }
@@ -201,8 +202,9 @@ TEST(CliMessages, LinkLoopsFilesAndDevicesSayWhatThePathIs) {
   fs::create_directories(dir / "images");
   fs::create_symlink(dir / "images" / "0.png", dir / "images" / "0.png");  // points at itself
   const auto images = [&](const std::string& spec, const std::vector<std::string>& extra = {}) {
-    std::vector<std::string> args = {"detect", "--dataset", spec, "--intrinsics", "100,100,16,16",
-                                     "--out", (dir / "out").string()};
+    std::vector<std::string> args = {
+        "detect", "--dataset",           spec, "--intrinsics", "100,100,16,16",
+        "--out",  (dir / "out").string()};
     args.insert(args.end(), extra.begin(), extra.end());
     return RunCli(args);
   };
@@ -229,10 +231,10 @@ TEST(CliMessages, OptionsThatWouldHangOrLetALibraryPrintAreBounded) {
                             "optimizer.num_threads=100000", "--out", (dir / "o1").string()}),
                     {"--set optimizer.num_threads=100000", "[1, 256]"});
   const auto start = std::chrono::steady_clock::now();
-  const CliResult r = RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--poses",
-                              (seq / "poses_raw.txt").string(), "-K", "15", "--set",
-                              "detector.search.cell_size=1e-300", "--out", (dir / "o2").string(),
-                              "--quiet"});
+  const CliResult r =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--poses",
+              (seq / "poses_raw.txt").string(), "-K", "15", "--set",
+              "detector.search.cell_size=1e-300", "--out", (dir / "o2").string(), "--quiet"});
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(r.exit_code, 0) << r.err;

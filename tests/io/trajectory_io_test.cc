@@ -145,8 +145,8 @@ TEST(TrajectoryRead, ByteOrderMarkAndEveryLineEndingReadTheSame) {
       ASSERT_EQ(t.size(), 3u);
       EXPECT_DOUBLE_EQ(t.poses[2].world_from_cam.translation.x(), 2.0);
       // An error names the line an editor shows: the 4th.
-      test::WriteText(path, bom + lines[0] + end + lines[1] + end + lines[2] + end +
-                                "2 2 0 0 0 0 0 1.5" + end);
+      test::WriteText(
+          path, bom + lines[0] + end + lines[1] + end + lines[2] + end + "2 2 0 0 0 0 0 1.5" + end);
       try {
         ReadTrajectory(path);
         ADD_FAILURE() << "no FileError";
@@ -156,11 +156,14 @@ TEST(TrajectoryRead, ByteOrderMarkAndEveryLineEndingReadTheSame) {
     }
   }
   // KITTI and EuRoC too (one reader of lines for every format).
-  const auto kitti = test::WriteText(dir / "k.txt", "\xEF\xBB\xBF" "1 0 0 0 0 1 0 0 0 0 1 0\r"
-                                                    "1 0 0 5 0 1 0 0 0 0 1 0\r");
+  const auto kitti = test::WriteText(dir / "k.txt",
+                                     "\xEF\xBB\xBF"
+                                     "1 0 0 0 0 1 0 0 0 0 1 0\r"
+                                     "1 0 0 5 0 1 0 0 0 0 1 0\r");
   EXPECT_EQ(ReadTrajectory(kitti).size(), 2u);
-  const auto euroc = test::WriteText(dir / "e.csv", "\xEF\xBB\xBF#t,x\r100,0,0,0,1,0,0,0\r"
-                                                    "200,1,0,0,1,0,0,0\r");
+  const auto euroc = test::WriteText(dir / "e.csv",
+                                     "\xEF\xBB\xBF#t,x\r100,0,0,0,1,0,0,0\r"
+                                     "200,1,0,0,1,0,0,0\r");
   EXPECT_EQ(ReadTrajectory(euroc).size(), 2u);
 }
 

@@ -326,8 +326,6 @@ TEST_F(MultiSession, SecondSessionInAnotherSim3FrameFindsCorrectCrossSessionLoop
               cross, session2_->size(), wrong, max_rot);
 }
 
-// Disabling the prior search gives no cross-session loop (the previous test is not vacuous), and
-// the same frames against an unrelated prior session give none either (no false loops).
 // A map stored at one K and searched at a very different one finds (almost) no cross-session loop,
 // which looked like "no revisit": loading such a session warns, naming both K and the -K to use.
 TEST_F(MultiSession, ASessionStoredAtAnotherKIsWarnedAbout) {
@@ -360,6 +358,8 @@ TEST_F(MultiSession, ASessionStoredAtAnotherKIsWarnedAbout) {
   EXPECT_NE(warning.find("use -K"), std::string::npos) << warning;
 }
 
+// Disabling the prior search gives no cross-session loop (SecondSessionInAnotherSim3Frame* is not
+// vacuous), and the same frames against an unrelated prior session give none either.
 TEST_F(MultiSession, NoCrossSessionLoopsWhenDisabledOrUnrelated) {
   auto detector = DetectorWithSession1(false);
   LoopDetector::Options off = Options();

@@ -243,8 +243,8 @@ TEST(MapDatabase, DevicesFoldersAndMissingFoldersAreRefusedBeforeSqlite) {
   EXPECT_NE(message(dir / "missing" / "map.db").find("missing"), std::string::npos);
   if (::geteuid() != 0) {  // root writes anywhere
     std::filesystem::create_directories(dir / "ro");
-    std::filesystem::permissions(dir / "ro", std::filesystem::perms::owner_read |
-                                                 std::filesystem::perms::owner_exec);
+    std::filesystem::permissions(
+        dir / "ro", std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
     const std::string ro = message(dir / "ro" / "map.db");
     std::filesystem::permissions(dir / "ro", std::filesystem::perms::owner_all);
     EXPECT_NE(ro.find("expected a writable folder"), std::string::npos) << ro;

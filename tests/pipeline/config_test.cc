@@ -95,7 +95,8 @@ TEST(Config, ABadValueNamesItsWholeKeyPath) {
   EXPECT_NE(e.find("a valid value for \"direction_loop.rotation_sigma_rad\""), std::string::npos)
       << e;
   EXPECT_NE(e.find("rotation_sigma_rad must be > 0"), std::string::npos) << e;
-  const std::string o = ErrorOf(nlohmann::json::parse(R"({"odometry": {"rotation_sigma_rad": -1}})"));
+  const std::string o =
+      ErrorOf(nlohmann::json::parse(R"({"odometry": {"rotation_sigma_rad": -1}})"));
   EXPECT_NE(o.find("\"odometry.rotation_sigma_rad\""), std::string::npos) << o;
 }
 
@@ -118,9 +119,10 @@ TEST(Config, DuplicateKeysAndFoldersAreFileErrors) {
          "\"detector.check_every\" a second time");
   expect("{\"optimizer\": {},\r\"detector\": {},\r\"optimizer\": {}}", 3,
          "\"optimizer\" a second time");
-  expect("{\"detector\": {\"features\": {\"max_features\": 15}},\n"
-         " \"detector\": {\"features\": {\"max_features\": 20}}}",
-         2, "\"detector\" a second time");
+  expect(
+      "{\"detector\": {\"features\": {\"max_features\": 15}},\n"
+      " \"detector\": {\"features\": {\"max_features\": 20}}}",
+      2, "\"detector\" a second time");
   // Same key names in different objects are fine.
   std::ofstream(dir / "ok.json") << R"({"odometry": {"rotation_sigma_rad": 0.02},
       "direction_loop": {"rotation_sigma_rad": 0.1}})";

@@ -277,8 +277,7 @@ TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
   // trajectory), and never one of the inputs or each other.
   p = NodeParams{};
   p.trajectory_file = "/nonexistent_dir/trajectory.txt";
-  EXPECT_NE(message(p).find("~trajectory_file /nonexistent_dir/trajectory.txt"),
-            std::string::npos)
+  EXPECT_NE(message(p).find("~trajectory_file /nonexistent_dir/trajectory.txt"), std::string::npos)
       << message(p);
   const auto dir = std::filesystem::temp_directory_path() / "sparseloop_node_core_params";
   std::filesystem::create_directories(dir);
