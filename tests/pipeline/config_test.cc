@@ -144,7 +144,11 @@ TEST(Config, DocumentedBoundsAreTheCheckedBounds) {
   const std::regex range(R"(([\[(])(-?[0-9.e+-]+), (-?[0-9.e+-]+)([\])]))");
   const std::regex at_least(R"((>=|>) (-?[0-9.e+-]+)\))");
   const auto accepted = [](const ConfigKey& key, double value) {
+    // The keys a bound of another key depends on, at their widest: K <= orb_candidates,
+    // ann.neighbors <= ann.ef_search.
     PipelineOptions o;
+    o.detector.features.orb_candidates = 10000;
+    o.detector.ann.ef_search = 4096;
     try {
       key.set(key.type == "integer" ? nlohmann::json(static_cast<int64_t>(value))
                                     : nlohmann::json(value),
