@@ -213,6 +213,9 @@ TEST(CliMessages, LinkLoopsFilesAndDevicesSayWhatThePathIs) {
   WriteCreatingFolder(dir / "file.txt", "x");
   ExpectExit2Naming(images("images:" + (dir / "file.txt").string()),
                     {(dir / "file.txt").string(), "got a regular file"});
+  fs::create_symlink(dir / "loop", dir / "loop");  // a folder link that points at itself
+  ExpectExit2Naming(images("images:" + (dir / "loop").string()),
+                    {(dir / "loop").string(), "symbolic links"});
   fs::remove(dir / "images" / "0.png");
   WriteCreatingFolder(dir / "images" / "0.png", "");
   ExpectExit2Naming(images("images:" + (dir / "images").string(), {"--map", "/dev/null"}),
