@@ -69,10 +69,11 @@ int RunDetect(int argc, char** argv) {
                  "persistent map (SQLite): earlier sessions in it are searched too (multi-session "
                  "loops, loops.csv match_session > 0); this run is stored as a new session");
   Parse(app, argc, argv);
-  CheckOutputDirFlag("--out", flags.out, kDetectOutputFiles);
+  // No input written over first (the more important message), then the output folder itself.
   std::vector<NamedPath> inputs = {{"--config", flags.config}, {"--poses", flags.poses}};
   for (const NamedPath& map : MapFiles("--map", map_path)) inputs.push_back(map);
   CheckOutputsAreNotInputs(FilesIn("--out", flags.out, kDetectOutputFiles), inputs);
+  CheckOutputDirFlag("--out", flags.out, kDetectOutputFiles);
 
   const bool poses_given = !flags.poses.empty() || DatasetHasPoseTopic(flags.dataset);
   // Without poses only the global search is defined: an explicit other --search is an error

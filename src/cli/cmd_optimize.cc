@@ -42,8 +42,8 @@ int RunOptimize(int argc, char** argv) {
   app.add_flag("--quiet", quiet,
                "No progress on stderr (reading, solving, one line per iteration)");
   Parse(app, argc, argv);
-  CheckOutputFileFlag("--out", out);
   CheckOutputsAreNotInputs({{"--out", out}}, {{"--g2o", in}});
+  CheckOutputFileFlag("--out", out);
 
   // The loss names of the config (ToString(RobustLoss)); "none" is the older name of trivial.
   std::optional<RobustLoss> loss;

@@ -234,9 +234,9 @@ int RunRender(int argc, char** argv) {
   Parse(app, argc, argv);
   const std::vector<std::string> files = {"poses_gt.txt", "poses_raw.txt", "raw_scale.txt",
                                           "poses.txt",    "times.txt",     "render.json"};
-  CheckOutputDirFlag("--out", f.out_dir, files);
   CheckOutputsAreNotInputs(FilesIn("--out", f.out_dir, files),
                            {{"--trajectory", f.trajectory_path}, {"--raw", f.raw_path}});
+  CheckOutputDirFlag("--out", f.out_dir, files);
   f.out_dir = ResolvedPath(f.out_dir).string();  // DIR/missing/.. is DIR
   ApplyRenderFlags(&f);
 

@@ -67,13 +67,14 @@ void AddRunFlags(CLI::App& app, RunFlags* f) {
 
 // Checked now, not after the run.
 void CheckRunFlags(const RunFlags& f) {
-  CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
+  // No input written over first (the more important message), then the output folder itself.
   std::vector<NamedPath> inputs = {{"--config", f.detector.config},
                                    {"--poses", f.detector.poses},
                                    {"--gt", f.gt_path},
                                    {"--odometry-covariance", f.covariance_path}};
   for (const NamedPath& map : MapFiles("--map", f.map_path)) inputs.push_back(map);
   CheckOutputsAreNotInputs(FilesIn("--out", f.detector.out, kRunOutputFiles), inputs);
+  CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
   if (f.gt_min_path && !(std::isfinite(*f.gt_min_path) && *f.gt_min_path >= 0.0)) {
     throw std::invalid_argument(
         fmt::format("--gt-min-path must be a path length >= 0, got {}", *f.gt_min_path));

@@ -58,7 +58,12 @@ void NodeParams::Check() const {
   if (pose_buffer < 1) {
     throw std::invalid_argument(fmt::format("~pose_buffer must be >= 1, got {}", pose_buffer));
   }
-  // The output files are checked now, not at finish, when the session's work would be lost.
+  // No input written over (and not both outputs in one file: the second would replace the first),
+  // then the output files themselves: checked now, not at finish, when the session's work would
+  // be lost.
+  CheckOutputsAreNotInputs({{"~trajectory_file", trajectory_file}, {"~loops_file", loops_file}},
+                           {{"~config_file", config_file}});
+  CheckOutputsAreNotInputs({{"~loops_file", loops_file}}, {{"~trajectory_file", trajectory_file}});
   for (const auto& [name, path] :
        {std::pair<const char*, const std::string&>{"~trajectory_file", trajectory_file},
         {"~loops_file", loops_file}}) {
@@ -69,10 +74,6 @@ void NodeParams::Check() const {
       throw std::invalid_argument(fmt::format("{} {}", name, e.what()));
     }
   }
-  CheckOutputsAreNotInputs({{"~trajectory_file", trajectory_file}, {"~loops_file", loops_file}},
-                           {{"~config_file", config_file}});
-  // Two outputs in one file: the second would replace the first.
-  CheckOutputsAreNotInputs({{"~loops_file", loops_file}}, {{"~trajectory_file", trajectory_file}});
 }
 
 namespace {
