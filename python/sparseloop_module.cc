@@ -12,16 +12,21 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
+
+#include <fmt/format.h>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/limits.h"
 #include "sparseloop/eval/json.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/config.h"
+#include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/pipeline/pipeline.h"
 #include "sparseloop/runtime/loop_closing.h"
 
@@ -34,45 +39,123 @@ namespace {
 py::object ToPython(const nlohmann::json& j) {
   return py::module_::import("json").attr("loads")(j.dump());
 }
-nlohmann::json FromPython(const py::object& o) {
-  const std::string text = py::module_::import("json").attr("dumps")(o).cast<std::string>();
+// "(3, 3)": the shape of an array, for messages.
+std::string ShapeOf(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// An argument as a float64 array; ValueError naming it when it is not numbers (None, a string).
+py::array_t<double, py::array::c_style | py::array::forcecast> ArrayArgument(
+    const py::object& o, const std::string& name) {
+  try {
+    if (o.is_none()) throw py::cast_error("None");
+    return o.cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
+  } catch (const py::cast_error&) {
+    throw std::invalid_argument(fmt::format("{}: expected numbers (a list or numpy array), got {}",
+                                            name, py::repr(o).cast<std::string>()));
+  }
+}
+
+// The key path of the first float in `o` that is NaN or infinite ("detector.min_path_ratio"), or
+// nullopt. JSON has no such numbers: Python's json.dumps writes them anyway, as NaN / Infinity.
+std::optional<std::string> NonFiniteKey(const py::handle& o, const std::string& path) {
+  if (py::isinstance<py::float_>(o)) {
+    if (!std::isfinite(o.cast<double>())) return path;
+  } else if (py::isinstance<py::dict>(o)) {
+    for (const auto& [key, value] : o.cast<py::dict>()) {
+      const std::string name = py::str(key).cast<std::string>();
+      if (auto found = NonFiniteKey(value, path.empty() ? name : path + "." + name)) return found;
+    }
+  } else if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+    const py::sequence items = o.cast<py::sequence>();
+    for (size_t i = 0; i < items.size(); ++i) {
+      const py::object item = items[i];
+      if (auto found = NonFiniteKey(item, fmt::format("{}[{}]", path, i))) return found;
+    }
+  }
+  return std::nullopt;
+}
+
+// A config dict as JSON; ValueError naming the argument and the key for what JSON cannot hold.
+nlohmann::json FromPython(const py::object& o, const std::string& argument) {
+  if (const auto key = NonFiniteKey(o, "")) {
+    throw std::invalid_argument(fmt::format(
+        "{}: expected a finite number for \"{}\", got NaN or infinity", argument, *key));
+  }
+  std::string text;
+  try {
+    text = py::module_::import("json").attr("dumps")(o).cast<std::string>();
+  } catch (py::error_already_set& e) {
+    throw std::invalid_argument(
+        fmt::format("{}: expected a dict of config keys (numbers, "
+                    "strings, booleans, lists, dicts), got {}",
+                    argument, e.what()));
+  }
   return nlohmann::json::parse(text);
 }
 
-// 4x4 row-major matrix [sR t; 0 1] (scale = cube root of det(sR)) -> Sim3d.
-Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::forcecast>& m) {
+// 4x4 row-major matrix [sR t; 0 1] (scale = cube root of det(sR)) -> Sim3d. `name` is the
+// argument ("pose", "poses[3]") every error names. The rotation block is accepted as the CLI's
+// trajectory reader accepts one (max |R^T R - I| <= kRotationTolerance, rounded files and float32
+// poses) and replaced by its nearest rotation.
+Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::forcecast>& m,
+                     const std::string& name) {
   if (m.ndim() != 2 || m.shape(0) < 3 || m.shape(0) > 4 || m.shape(1) != 4)
-    throw std::invalid_argument("a pose must be a 4x4 or 3x4 matrix, got " +
+    throw std::invalid_argument(name + ": a pose must be a 4x4 or 3x4 matrix, got " +
                                 std::to_string(m.ndim()) + " dimensions of sizes " +
                                 std::to_string(m.ndim() > 0 ? m.shape(0) : 0) + ", " +
                                 std::to_string(m.ndim() > 1 ? m.shape(1) : 0));
+  for (py::ssize_t r = 0; r < m.shape(0); ++r)
+    for (py::ssize_t c = 0; c < 4; ++c)
+      if (!std::isfinite(m.at(r, c)))
+        throw std::invalid_argument(fmt::format("{}: entry ({}, {}) is not finite", name, r, c));
+  if (m.shape(0) == 4 &&
+      !(m.at(3, 0) == 0.0 && m.at(3, 1) == 0.0 && m.at(3, 2) == 0.0 && m.at(3, 3) == 1.0)) {
+    throw std::invalid_argument(fmt::format(
+        "{}: expected a 4x4 pose with last row [0, 0, 0, 1] (world_from_cam = [sR t; 0 1]), got "
+        "[{}, {}, {}, {}] (a transposed matrix? pass pose.T)",
+        name, m.at(3, 0), m.at(3, 1), m.at(3, 2), m.at(3, 3)));
+  }
   Eigen::Matrix3d sr;
   Eigen::Vector3d t;
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) sr(r, c) = m.at(r, c);
     t(r) = m.at(r, 3);
   }
+  if (t.cwiseAbs().maxCoeff() > kMaxCoordinate)
+    throw std::invalid_argument(fmt::format("{}: translation beyond +-{:g}, got ({}, {}, {})", name,
+                                            kMaxCoordinate, t.x(), t.y(), t.z()));
   const double det = sr.determinant();
   if (!(det > 0.0) || !std::isfinite(det))
-    throw std::invalid_argument("a pose's rotation block must have a positive determinant");
+    throw std::invalid_argument(name +
+                                ": a pose's rotation block must have a positive determinant");
   const double scale = std::cbrt(det);
   const Eigen::Matrix3d r = sr / scale;
-  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6)
-    throw std::invalid_argument("a pose's rotation block is not a scaled rotation (R^T R != I)");
-  return Sim3d(scale, Eigen::Quaterniond(r).normalized(), t);
+  const double deviation = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (deviation > kRotationTolerance)
+    throw std::invalid_argument(fmt::format(
+        "{}: a pose's rotation block is not a scaled rotation (max |R^T R - I| = {:.3g} > {})",
+        name, deviation, kRotationTolerance));
+  Matrix3x4d rt;
+  rt << r, t;
+  const Rigid3d nearest = Rigid3d::FromMatrix3x4(rt, kRotationTolerance);
+  return Sim3d(scale, nearest.rotation, t);
 }
 
 // A pose argument: a 4x4 / 3x4 array, or a tuple (R 3x3, t 3[, scale]).
-std::optional<Sim3d> PoseFromPython(const py::object& o) {
+std::optional<Sim3d> PoseFromPython(const py::object& o, const std::string& name) {
   if (o.is_none()) return std::nullopt;
   if (py::isinstance<py::tuple>(o) || py::isinstance<py::list>(o)) {
     const py::sequence s = o.cast<py::sequence>();
     if (s.size() != 2 && s.size() != 3)
-      throw std::invalid_argument("a pose tuple must be (R, t) or (R, t, scale)");
+      throw std::invalid_argument(name + ": a pose tuple must be (R, t) or (R, t, scale)");
     const auto r = s[0].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     const auto t = s[1].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     if (r.ndim() != 2 || r.shape(0) != 3 || r.shape(1) != 3 || t.size() != 3)
-      throw std::invalid_argument("a pose tuple needs R of shape (3, 3) and t of 3 values");
+      throw std::invalid_argument(name +
+                                  ": a pose tuple needs R of shape (3, 3) and t of 3 values");
     py::array_t<double> m({4, 4});
     auto w = m.mutable_unchecked<2>();
     const double scale = s.size() == 3 ? s[2].cast<double>() : 1.0;
@@ -82,9 +165,9 @@ std::optional<Sim3d> PoseFromPython(const py::object& o) {
       w(3, i) = 0.0;
     }
     w(3, 3) = 1.0;
-    return PoseFromMatrix(m);
+    return PoseFromMatrix(m, name);
   }
-  return PoseFromMatrix(o.cast<py::array_t<double, py::array::c_style | py::array::forcecast>>());
+  return PoseFromMatrix(ArrayArgument(o, name), name);
 }
 
 py::array_t<double> ToNumpy(const Eigen::Matrix4d& m) {
@@ -175,7 +258,7 @@ Trajectory TrajectoryFromNumpy(
   for (size_t i = 0; i < n; ++i) {
     py::array_t<double> m({4, 4});
     std::copy(poses.data() + 16 * i, poses.data() + 16 * (i + 1), m.mutable_data());
-    const Sim3d pose = PoseFromMatrix(m);
+    const Sim3d pose = PoseFromMatrix(m, fmt::format("poses[{}]", i));
     if (std::abs(pose.scale - 1.0) > 1e-6)
       throw std::invalid_argument("pose " + std::to_string(i) + " is not rigid (scale " +
                                   std::to_string(pose.scale) + ")");
@@ -197,7 +280,7 @@ LoopClosing::Options ClosingOptions(const py::object& config, bool solve_while_r
     if (py::isinstance<py::str>(config))
       LoadConfigFile(config.cast<std::string>(), &p);
     else
-      ApplyConfig(FromPython(config), "config", &p);
+      ApplyConfig(FromPython(config, "config"), "config", &p);
   }
   LoopClosing::Options o = LoopClosingOptionsFor(p, solve_while_running);
   o.optimize = optimize;
@@ -254,15 +337,21 @@ class PyLoopClosing {
     in.id = id;
     in.timestamp = timestamp;
     in.image = ImageFromNumpy(image);
-    const auto k = intrinsics.cast<std::vector<double>>();
-    if (k.size() != 4) throw std::invalid_argument("intrinsics must be (fx, fy, cx, cy)");
-    in.intrinsics.fx = k[0];
-    in.intrinsics.fy = k[1];
-    in.intrinsics.cx = k[2];
-    in.intrinsics.cy = k[3];
+    const auto k = ArrayArgument(intrinsics, "intrinsics");
+    if (k.ndim() != 1 || k.size() != 4) {
+      throw std::invalid_argument(fmt::format(
+          "intrinsics: expected (fx, fy, cx, cy), got an array of shape {}{}", ShapeOf(k),
+          k.ndim() == 2 && k.shape(0) == 3 && k.shape(1) == 3
+              ? " (from a 3x3 K pass (K[0, 0], K[1, 1], K[0, 2], K[1, 2]))"
+              : ""));
+    }
+    in.intrinsics.fx = k.at(0);
+    in.intrinsics.fy = k.at(1);
+    in.intrinsics.cx = k.at(2);
+    in.intrinsics.cy = k.at(3);
     in.intrinsics.width = in.image.cols;
     in.intrinsics.height = in.image.rows;
-    in.world_from_cam = PoseFromPython(pose);
+    in.world_from_cam = PoseFromPython(pose, "pose");
     in.pose_reset = pose_reset;
     if (!mapped_pixels.is_none()) {
       const auto px =
@@ -272,7 +361,22 @@ class PyLoopClosing {
       for (py::ssize_t i = 0; i < px.shape(0); ++i)
         in.mapped_pixels.emplace_back(px.at(i, 0), px.at(i, 1));
     }
-    if (!mapped_depths.is_none()) in.mapped_depths = mapped_depths.cast<std::vector<float>>();
+    if (!mapped_depths.is_none()) {
+      const auto d = ArrayArgument(mapped_depths, "mapped_depths");
+      if (d.ndim() != 1)
+        throw std::invalid_argument(fmt::format(
+            "mapped_depths: expected one depth per mapped pixel, shape (N,), got shape {}",
+            ShapeOf(d)));
+      for (py::ssize_t i = 0; i < d.size(); ++i) {
+        if (!(d.at(i) > 0.0 && std::isfinite(d.at(i)))) {
+          throw std::invalid_argument(fmt::format(
+              "mapped_depths[{}]: expected a positive, finite depth (the pose's units), got {} "
+              "(leave the argument out when depths are unknown)",
+              i, d.at(i)));
+        }
+        in.mapped_depths.push_back(static_cast<float>(d.at(i)));
+      }
+    }
     if (!odometry_covariance.is_none()) {
       const auto c = odometry_covariance
                          .cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
@@ -446,8 +550,12 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
   m.def(
       "read_image",
       [](const std::string& path) {
-        const cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-        if (img.empty()) throw FileError(path, 0, "an image file", "unreadable");
+        // Read as `run` reads a frame: a file that cannot be opened is not handed to OpenCV (its
+        // warning line), and the error says why.
+        DatasetFrame frame;
+        frame.image_path = path;
+        const cv::Mat img = ReadFrameGray(Dataset{}, frame);
+        if (img.empty()) throw FileError(path, 0, "an image file", ImageReadProblem(path));
         py::array_t<uint8_t> a({img.rows, img.cols});
         for (int r = 0; r < img.rows; ++r)
           std::copy(img.ptr<uint8_t>(r), img.ptr<uint8_t>(r) + img.cols, a.mutable_data(r, 0));

@@ -107,6 +107,49 @@ def test_bad_input_raises_with_the_library_message():
         closing.add_keyframe(**blank(3))
 
 
+def test_arguments_are_validated_as_the_cli_reads_files():
+    """Each bad argument is a ValueError naming it (README): never a pybind11 cast error."""
+    closing = sparseloop.LoopClosing(optimize=False)
+    # A transposed pose (translation in the bottom row) put every position at the origin.
+    transposed = np.eye(4)
+    transposed[3, :3] = (1.0, 2.0, 3.0)
+    with pytest.raises(ValueError, match=r"pose: expected a 4x4 pose with last row \[0, 0, 0, 1\]"):
+        closing.add_keyframe(**blank(0, pose=transposed))
+    # Rotations rounded to 6 digits (the castle GT) or float32: within the CLI reader's 1e-3.
+    c, s_ = np.cos(0.3), np.sin(0.3)
+    rounded = np.eye(4)
+    rounded[:3, :3] = np.round([[c, -s_, 0], [s_, c, 0], [0, 0, 1]], 6)
+    rounded[0, 3] = 1.0
+    closing.add_keyframe(**blank(0, pose=rounded))
+    closing.add_keyframe(**blank(1, pose=rounded.astype(np.float32)))
+    with pytest.raises(ValueError, match=r"pose: .*not a scaled rotation"):
+        skewed = np.eye(4)
+        skewed[0, 1] = 0.01
+        closing.add_keyframe(**blank(2, pose=skewed))
+    with pytest.raises(ValueError, match=r"pose: translation beyond"):
+        far = np.eye(4)
+        far[0, 3] = 1e200
+        closing.add_keyframe(**blank(2, pose=far))
+    # Depths that are NaN, negative or zero cost the loop silently; inf was the only one refused.
+    pixels = np.array([[10.0, 10.0], [20.0, 20.0]], np.float32)
+    for bad in (np.nan, -1.0, 0.0, np.inf):
+        with pytest.raises(ValueError, match=r"mapped_depths\[1\]: expected a positive, finite depth"):
+            closing.add_keyframe(**blank(2), mapped_pixels=pixels,
+                                 mapped_depths=np.array([1.0, bad], np.float32))
+    # Intrinsics: a 3x3 K or None name the argument (they raised pybind11's cast error).
+    k = np.array([[150.0, 0, 79.5], [0, 150.0, 59.5], [0, 0, 1]])
+    with pytest.raises(ValueError, match=r"intrinsics: expected \(fx, fy, cx, cy\).*K\[0, 0\]"):
+        closing.add_keyframe(**blank(2, intrinsics=k))
+    with pytest.raises(ValueError, match=r"intrinsics: expected numbers"):
+        closing.add_keyframe(**blank(2, intrinsics=None))
+    with pytest.raises(ValueError, match=r"intrinsics: fx must be at most"):
+        closing.add_keyframe(**blank(2, intrinsics=(1e308, 1e308, 79.5, 59.5)))
+    closing.add_keyframe(**blank(2))
+    # A NaN in a config dict names the key (it raised RuntimeError with "line 1, column 44").
+    with pytest.raises(ValueError, match=r'config: expected a finite number for "detector.min_path_ratio"'):
+        sparseloop.LoopClosing(config={"detector": {"min_path_ratio": float("nan")}})
+
+
 def test_config_keys_are_the_cli_registry(cli):
     cli_dump = json.loads(subprocess.run([cli, "config", "--dump", "run"], check=True,
                                          capture_output=True, text=True).stdout)

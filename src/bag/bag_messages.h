@@ -25,14 +25,16 @@ struct ImageHeader {
   double stamp = 0.0;       // header.stamp, seconds
   bool compressed = false;  // sensor_msgs/CompressedImage
   std::string encoding;     // Image: encoding ("mono8", ...); CompressedImage: format
-  int width = 0;            // Image only (0 for compressed)
-  int height = 0;
+  // Image only (0 for compressed): uint32 in the message, kept whole so that a size beyond int
+  // is refused as given (4000000000, not -294967296).
+  int64_t width = 0;
+  int64_t height = 0;
 };
 
 // One image message's content.
 struct ImageData {
   ImageHeader header;
-  int step = 0;               // bytes per row (Image)
+  int64_t step = 0;           // bytes per row (Image; uint32 in the message)
   bool big_endian = false;    // Image
   std::vector<uint8_t> data;  // pixels (Image) or the encoded file (CompressedImage)
 };
@@ -50,8 +52,8 @@ struct PoseMessage {
 
 // sensor_msgs/CameraInfo (first message of the topic).
 struct CameraInfoMessage {
-  int width = 0;
-  int height = 0;
+  int64_t width = 0;  // uint32 in the message, kept whole (see ImageHeader)
+  int64_t height = 0;
   std::string distortion_model;  // "plumb_bob", "rational_polynomial", "equidistant", ""
   std::vector<double> d;
   double k[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};

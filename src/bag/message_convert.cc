@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -11,6 +12,11 @@
 #include "sparseloop/core/quaternion.h"
 
 namespace sparseloop::bag_internal {
+
+namespace {
+// Largest image side taken from a message (width and height are uint32 there): what an int holds.
+constexpr int64_t kMaxSide = std::numeric_limits<int>::max();
+}  // namespace
 
 cv::Mat DecodeGray(const ImageData& m) {
   cv::Mat gray;
@@ -37,14 +43,16 @@ cv::Mat DecodeGray(const ImageData& m) {
     throw MessageError{"encoding mono8, 8UC1, mono16, 16UC1, bgr8, rgb8, bgra8 or rgba8",
                        fmt::format("'{}'", e)};
   }
-  const int w = m.header.width, h = m.header.height;
-  const int64_t row = int64_t{w} * std::abs(channels);
-  if (w <= 0 || h <= 0 || m.step < row ||
-      int64_t{m.step} * h > static_cast<int64_t>(m.data.size())) {
+  const int64_t w64 = m.header.width, h64 = m.header.height;
+  const int64_t row = w64 * std::abs(channels);
+  if (w64 <= 0 || h64 <= 0 || w64 > kMaxSide || h64 > kMaxSide || m.step < row ||
+      m.step > std::numeric_limits<int>::max() ||
+      m.step * h64 > static_cast<int64_t>(m.data.size())) {
     throw MessageError{
-        fmt::format("{}x{} {} pixels in rows of step {} (>= {})", w, h, e, m.step, row),
+        fmt::format("{}x{} {} pixels in rows of step {} (>= {})", w64, h64, e, m.step, row),
         fmt::format("{} bytes of data", m.data.size())};
   }
+  const int w = static_cast<int>(w64), h = static_cast<int>(h64);
   auto* data = const_cast<uint8_t*>(m.data.data());
   if (channels == -2) {
     cv::Mat wide = cv::Mat(h, w, CV_16UC1, data, m.step).clone();
@@ -75,8 +83,12 @@ CameraIntrinsics IntrinsicsFromCameraInfo(const CameraInfoMessage& c) {
   k.cx = c.k[2];
   k.fy = c.k[4];
   k.cy = c.k[5];
-  k.width = c.width;
-  k.height = c.height;
+  if (c.width < 0 || c.height < 0 || c.width > kMaxSide || c.height > kMaxSide) {
+    throw MessageError{fmt::format("an image size of at most {0}x{0} pixels", kMaxSide),
+                       fmt::format("{}x{}", c.width, c.height)};
+  }
+  k.width = static_cast<int>(c.width);
+  k.height = static_cast<int>(c.height);
   const bool any = std::any_of(c.d.begin(), c.d.end(), [](double v) { return v != 0.0; });
   if (any && (c.distortion_model == "plumb_bob" || c.distortion_model == "radtan")) {
     k.distortion_model = DistortionModel::kRadialTangential;

@@ -19,8 +19,8 @@ inline ImageHeader HeaderOf(const sensor_msgs::Image& msg, int64_t index) {
   h.index = index;
   h.stamp = msg.header.stamp.toSec();
   h.encoding = msg.encoding;
-  h.width = static_cast<int>(msg.width);
-  h.height = static_cast<int>(msg.height);
+  h.width = static_cast<int64_t>(msg.width);
+  h.height = static_cast<int64_t>(msg.height);
   return h;
 }
 
@@ -36,7 +36,7 @@ inline ImageHeader HeaderOf(const sensor_msgs::CompressedImage& msg, int64_t ind
 inline ImageData ToImageData(const sensor_msgs::Image& msg, int64_t index) {
   ImageData out;
   out.header = HeaderOf(msg, index);
-  out.step = static_cast<int>(msg.step);
+  out.step = static_cast<int64_t>(msg.step);
   out.big_endian = msg.is_bigendian != 0;
   out.data = msg.data;
   return out;
@@ -64,8 +64,8 @@ PoseMessage ToPoseMessage(int64_t index, const ros::Time& stamp, const Position&
 
 inline CameraInfoMessage ToCameraInfo(const sensor_msgs::CameraInfo& msg) {
   CameraInfoMessage c;
-  c.width = static_cast<int>(msg.width);
-  c.height = static_cast<int>(msg.height);
+  c.width = static_cast<int64_t>(msg.width);
+  c.height = static_cast<int64_t>(msg.height);
   c.distortion_model = msg.distortion_model;
   c.d = msg.D;
   std::copy(msg.K.begin(), msg.K.end(), c.k);

@@ -142,14 +142,14 @@ std::optional<ImageSize> FramesFromImages(const RosbagSpec& s, std::vector<Image
                       fmt::format("both {:.9f} s", h.stamp));
     }
     if (!h.compressed) {
-      if (h.width < kMinImageSide || h.height < kMinImageSide ||
-          int64_t{h.width} * h.height > kMaxImagePixels) {
+      if (h.width < kMinImageSide || h.height < kMinImageSide || h.width > kMaxImagePixels ||
+          h.height > kMaxImagePixels || h.width * h.height > kMaxImagePixels) {
         throw FileError(s.file, 0,
                         fmt::format("an image of {0}x{0} to {1} pixels in message {2} of topic {3}",
                                     kMinImageSide, kMaxImagePixels, h.index, s.image),
                         fmt::format("{}x{}", h.width, h.height));
       }
-      if (!size) size = ImageSize{h.width, h.height};
+      if (!size) size = ImageSize{static_cast<int>(h.width), static_cast<int>(h.height)};
       if (h.width != size->width || h.height != size->height) {
         throw FileError(s.file, 0,
                         fmt::format("every image {}x{} in topic {} (message {})", size->width,

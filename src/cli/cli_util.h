@@ -12,6 +12,7 @@
 
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/output_paths.h"
 
 namespace sparseloop::cli {
 
@@ -70,6 +71,21 @@ inline void CheckOutputFileFlag(const std::string& flag, const std::string& path
 inline void CheckOutputDirFlag(const std::string& flag, const std::string& dir,
                                const std::vector<std::string>& file_names = {}) {
   NameTheFlag(flag, [&] { CheckOutputDirectory(dir, file_names); });
+}
+
+// The files a command writes into its --out folder `dir`, each named by `flag`, as outputs for
+// CheckOutputsAreNotInputs ("--out DIR/trajectory.txt: ... got the file of --gt ...").
+inline std::vector<NamedPath> FilesIn(const std::string& flag, const std::string& dir,
+                                      const std::vector<std::string>& names) {
+  std::vector<NamedPath> files;
+  for (const std::string& name : names) files.push_back({flag, std::filesystem::path(dir) / name});
+  return files;
+}
+
+// A --map database and the -wal / -shm files SQLite keeps beside it, as inputs.
+inline std::vector<NamedPath> MapFiles(const std::string& flag, const std::string& map) {
+  if (map.empty()) return {};
+  return {{flag, map}, {flag, map + "-wal"}, {flag, map + "-shm"}};
 }
 
 // Option fields named in library messages, with the flag that sets each: {"loss_scale",

@@ -27,6 +27,7 @@ int RunConvert(int argc, char** argv) {
   app.add_flag("--drop-duplicates", read_options.drop_duplicate_timestamps,
                "keep the first of repeated timestamps / frame indices instead of failing");
   Parse(app, argc, argv);
+  CheckOutputsAreNotInputs({{"--out", out}}, {{"--in", in}});
   CheckOutputFileFlag("--out", out);
 
   const TrajectoryFormat in_format = ParseTrajectoryFormat(from);

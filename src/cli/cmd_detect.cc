@@ -69,6 +69,10 @@ int RunDetect(int argc, char** argv) {
                  "persistent map (SQLite): earlier sessions in it are searched too (multi-session "
                  "loops, loops.csv match_session > 0); this run is stored as a new session");
   Parse(app, argc, argv);
+  // No input written over first (the more important message), then the output folder itself.
+  std::vector<NamedPath> inputs = {{"--config", flags.config}, {"--poses", flags.poses}};
+  for (const NamedPath& map : MapFiles("--map", map_path)) inputs.push_back(map);
+  CheckOutputsAreNotInputs(FilesIn("--out", flags.out, kDetectOutputFiles), inputs);
   CheckOutputDirFlag("--out", flags.out, kDetectOutputFiles);
 
   const bool poses_given = !flags.poses.empty() || DatasetHasPoseTopic(flags.dataset);
@@ -109,7 +113,7 @@ int RunDetect(int argc, char** argv) {
   // In-session loops first, then loops into earlier map sessions (as `run` writes them).
   std::vector<LoopResult> loops = result.loops;
   loops.insert(loops.end(), result.cross_session_loops.begin(), result.cross_session_loops.end());
-  const std::filesystem::path out(flags.out);
+  const std::filesystem::path out = ResolvedPath(flags.out);  // DIR/missing/.. is DIR
   std::filesystem::create_directories(out);
   WriteLoopsCsv(out / "loops.csv", loops, nullptr, nullptr, ImageNamesByFrame(dataset),
                 /*graph_columns=*/false);

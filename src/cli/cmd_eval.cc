@@ -130,6 +130,11 @@ void AddEvalFlags(CLI::App& app, EvalFlags* f) {
 
 // Everything checked that can be before a file is read; an invalid value names its flag.
 void CheckEvalFlags(EvalFlags* f) {
+  CheckOutputsAreNotInputs({{"--json", f->json_path}}, {{"--gt", f->gt_path},
+                                                        {"--est", f->est_path},
+                                                        {"--gt-loops", f->gt_loops_path},
+                                                        {"--loops", f->loops_path},
+                                                        {"--frames", f->frames_path}});
   if (!f->json_path.empty()) CheckOutputFileFlag("--json", f->json_path);
   f->options.alignment = ParseAlignment(f->align);
   SL_CHECK_MSG(f->rpe_unit == "frames" || f->rpe_unit == "m",

@@ -42,6 +42,7 @@ int RunOptimize(int argc, char** argv) {
   app.add_flag("--quiet", quiet,
                "No progress on stderr (reading, solving, one line per iteration)");
   Parse(app, argc, argv);
+  CheckOutputsAreNotInputs({{"--out", out}}, {{"--g2o", in}});
   CheckOutputFileFlag("--out", out);
 
   // The loss names of the config (ToString(RobustLoss)); "none" is the older name of trivial.
@@ -53,6 +54,8 @@ int RunOptimize(int argc, char** argv) {
                robust);
   options.edge_loss = *loss;
   options.loop_loss = *loss;
+  SL_CHECK_MSG(options.num_threads <= 256, "--threads must be in [1, 256], got {}",
+               options.num_threads);
   CheckNamingFlags({{"loss_scale", "--loss-scale"},
                     {"max_iterations", "--max-iterations"},
                     {"num_threads", "--threads"}},

@@ -232,9 +232,12 @@ int RunRender(int argc, char** argv) {
   RenderFlags f;
   AddRenderFlags(app, &f);
   Parse(app, argc, argv);
-  CheckOutputDirFlag(
-      "--out", f.out_dir,
-      {"poses_gt.txt", "poses_raw.txt", "raw_scale.txt", "poses.txt", "times.txt", "render.json"});
+  const std::vector<std::string> files = {"poses_gt.txt", "poses_raw.txt", "raw_scale.txt",
+                                          "poses.txt",    "times.txt",     "render.json"};
+  CheckOutputsAreNotInputs(FilesIn("--out", f.out_dir, files),
+                           {{"--trajectory", f.trajectory_path}, {"--raw", f.raw_path}});
+  CheckOutputDirFlag("--out", f.out_dir, files);
+  f.out_dir = ResolvedPath(f.out_dir).string();  // DIR/missing/.. is DIR
   ApplyRenderFlags(&f);
 
   const Scene scene = BuildScene(f, MakeTextures(f));

@@ -67,6 +67,13 @@ void AddRunFlags(CLI::App& app, RunFlags* f) {
 
 // Checked now, not after the run.
 void CheckRunFlags(const RunFlags& f) {
+  // No input written over first (the more important message), then the output folder itself.
+  std::vector<NamedPath> inputs = {{"--config", f.detector.config},
+                                   {"--poses", f.detector.poses},
+                                   {"--gt", f.gt_path},
+                                   {"--odometry-covariance", f.covariance_path}};
+  for (const NamedPath& map : MapFiles("--map", f.map_path)) inputs.push_back(map);
+  CheckOutputsAreNotInputs(FilesIn("--out", f.detector.out, kRunOutputFiles), inputs);
   CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
   if (f.gt_min_path && !(std::isfinite(*f.gt_min_path) && *f.gt_min_path >= 0.0)) {
     throw std::invalid_argument(
@@ -245,7 +252,7 @@ int RunRun(int argc, char** argv) {
       [&](const PipelineProgress& p) { progress.Update(p.frames_done, p.frames_total, p.loops); });
   progress.Finish();
 
-  const std::filesystem::path out = flags.out;
+  const std::filesystem::path out = ResolvedPath(flags.out);  // DIR/missing/.. is DIR
   std::filesystem::create_directories(out);
   WriteTrajectory(out / "trajectory.txt", result.corrected, TrajectoryFormat::kTum);
   WriteTrajectory(out / "trajectory_kitti.txt", result.corrected, TrajectoryFormat::kKitti);
@@ -306,8 +313,8 @@ int RunRun(int argc, char** argv) {
 
   PrintRunSummary(std::cout, summary, eval_raw ? &*eval_raw : nullptr,
                   eval_corrected ? &*eval_corrected : nullptr);
-  std::cout << "wrote " << (out / "trajectory.txt").string() << ", trajectory_kitti.txt, "
-            << "loops.csv, summary.json\n";
+  std::cout << "wrote " << (std::filesystem::path(flags.out) / "trajectory.txt").string()
+            << ", trajectory_kitti.txt, loops.csv, summary.json\n";
   return 0;
 }
 

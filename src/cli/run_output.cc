@@ -201,14 +201,16 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
   const size_t colon = dataset_spec.find(':');
   if (colon != std::string::npos) {
     const fs::path dataset_dir = fs::weakly_canonical(dataset_spec.substr(colon + 1), ec);
-    if (!ec && fs::weakly_canonical(out, ec) == dataset_dir) {
+    if (!ec && ResolvedPath(out) == dataset_dir) {
       throw std::invalid_argument(fmt::format(
           "--out {}: expected a folder other than the dataset's ({}): the next run would read "
           "the outputs written there as its input",
           out, dataset_spec));
     }
   }
-  if (!fs::is_directory(out, ec)) return;  // created later; CheckOutputDirFlag checked it
+  // `DIR/missing/..` is DIR: the folder the files will be written to is the one checked.
+  const fs::path dir = ResolvedPath(out);
+  if (!fs::is_directory(dir, ec)) return;  // created later; CheckOutputDirFlag checked it
   const auto is_own = [&](const std::string& name) {
     return std::find(files.begin(), files.end(), name) != files.end() || name == "report.html" ||
            (name.rfind("report_", 0) == 0 && fs::path(name).extension() == ".png");
@@ -225,7 +227,7 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
     return false;
   };
   std::vector<std::string> entries, foreign;
-  for (const auto& entry : fs::directory_iterator(out)) {
+  for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string name = entry.path().filename().string();
     if (is_input(entry.path())) continue;  // an input of this run: neither foreign nor removed
     entries.push_back(name);
@@ -234,7 +236,7 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
   if (entries.empty()) return;
   bool same_command = false;
   try {
-    std::ifstream in(fs::path(out) / "summary.json");
+    std::ifstream in(dir / "summary.json");
     if (in) same_command = nlohmann::json::parse(in).value("command", "") == command;
   } catch (const std::exception&) {
     same_command = false;
@@ -250,7 +252,7 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
   std::vector<std::string> removed;
   std::sort(entries.begin(), entries.end());
   for (const std::string& name : entries) {
-    if (is_own(name) && fs::remove(fs::path(out) / name, ec)) removed.push_back(name);
+    if (is_own(name) && fs::remove(dir / name, ec)) removed.push_back(name);
   }
   if (!removed.empty()) {
     Logger().info(
@@ -294,10 +296,19 @@ ImageNames ImageNamesByFrame(const Dataset& dataset) {
   return names;
 }
 
+// `text` as one CSV field (RFC 4180): quoted, with its quotes doubled, when it holds a comma, a
+// quote or a line end (an image named "a,b.png" must not add a column for `eval --loops`).
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
 std::string ImageColumns(const LoopResult& loop, const ImageNames& images) {
   const auto name = [&](int64_t frame) {
     const auto it = images.find(frame);
-    return it == images.end() ? std::string() : it->second;
+    return it == images.end() ? std::string() : CsvField(it->second);
   };
   return "," + name(loop.query_id) + "," + (loop.match_session == 0 ? name(loop.match_id) : "");
 }

@@ -12,12 +12,28 @@ Eigen::Matrix3d CameraIntrinsics::K() const {
   return k;
 }
 
+namespace {
+// Largest focal length and principal-point coordinate accepted, pixels: beyond any lens (an
+// 8000-pixel image with a 1 degree field of view has fx ~ 4.6e5), and what keeps every projection
+// inside the float range of a stored keyframe.
+constexpr double kMaxFocalLength = 1e7;
+}  // namespace
+
 void CameraIntrinsics::Check() const {
   SL_CHECK_MSG(std::isfinite(fx) && fx > 0, "intrinsics: fx must be positive and finite, got {}",
                fx);
   SL_CHECK_MSG(std::isfinite(fy) && fy > 0, "intrinsics: fy must be positive and finite, got {}",
                fy);
+  // Beyond any lens (an 8000-pixel image with a 1 degree field of view has fx ~ 4.6e5), and what
+  // keeps every projection inside the float range of the stored keyframes.
+  SL_CHECK_MSG(fx <= kMaxFocalLength, "intrinsics: fx must be at most {} pixels, got {}",
+               kMaxFocalLength, fx);
+  SL_CHECK_MSG(fy <= kMaxFocalLength, "intrinsics: fy must be at most {} pixels, got {}",
+               kMaxFocalLength, fy);
   SL_CHECK_MSG(std::isfinite(cx) && std::isfinite(cy), "intrinsics: principal point not finite");
+  SL_CHECK_MSG(std::abs(cx) <= kMaxFocalLength && std::abs(cy) <= kMaxFocalLength,
+               "intrinsics: principal point ({}, {}) must be within {} pixels", cx, cy,
+               kMaxFocalLength);
   SL_CHECK_MSG(width >= 0 && height >= 0, "intrinsics: negative image size {}x{}", width, height);
   if (width > 0 && height > 0) {
     SL_CHECK_MSG(cx > 0 && cx < width && cy > 0 && cy < height,

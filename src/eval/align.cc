@@ -91,9 +91,13 @@ AlignmentResult Umeyama(const std::vector<Eigen::Vector3d>& est,
   var_gt /= n;
   cov /= n;
 
-  // Spread relative to the magnitude of the coordinates: below this the points are one point.
-  const double scale_ref = std::max({1.0, mean_est.squaredNorm(), mean_gt.squaredNorm()});
-  if (var_est <= 1e-24 * scale_ref || var_gt <= 1e-24 * scale_ref) {
+  // Each set's spread relative to the magnitude of its own coordinates: below this the points are
+  // one point (the two sets may differ in scale by any factor: a monocular estimate's unit is
+  // arbitrary, so an estimate at 1e14 x the GT's scale aligns exactly).
+  const auto one_point = [](double var, const Eigen::Vector3d& mean) {
+    return !(var > 1e-24 * mean.squaredNorm()) || !(var > 1e-280);
+  };
+  if (one_point(var_est, mean_est) || one_point(var_gt, mean_gt)) {
     result.status = AlignmentStatus::kDegenerate;
     result.gt_from_est = Sim3d(1.0, Eigen::Quaterniond::Identity(), mean_gt - mean_est);
     result.rms_residual = RmsResidual(est, gt, result.gt_from_est);

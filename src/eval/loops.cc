@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <numbers>
 #include <set>
@@ -14,6 +15,7 @@
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/text_lines.h"
 
 namespace sparseloop {
 
@@ -63,16 +65,38 @@ std::vector<LoopPair> DeriveGtLoops(const Trajectory& gt, const GtLoopOptions& o
 
 namespace {
 
+// The fields of one CSV line, each trimmed; a field in double quotes (RFC 4180, as loops.csv
+// writes an image name holding a comma) may hold commas, its doubled quotes read as one.
 std::vector<std::string> SplitCsv(const std::string& line) {
   std::vector<std::string> out;
   size_t start = 0;
   while (true) {
+    const size_t b = line.find_first_not_of(" \t\r", start);
+    if (b != std::string::npos && line[b] == '"') {
+      std::string field;
+      size_t i = b + 1;
+      for (; i < line.size(); ++i) {
+        if (line[i] != '"') {
+          field += line[i];
+        } else if (i + 1 < line.size() && line[i + 1] == '"') {
+          field += '"';
+          ++i;
+        } else {
+          break;  // the closing quote
+        }
+      }
+      const size_t comma = line.find(',', i);
+      out.push_back(field);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+      continue;
+    }
     const size_t comma = line.find(',', start);
     std::string field =
         line.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    const auto b = field.find_first_not_of(" \t\r");
-    const auto e = field.find_last_not_of(" \t\r");
-    out.push_back(b == std::string::npos ? std::string() : field.substr(b, e - b + 1));
+    const auto fb = field.find_first_not_of(" \t\r");
+    const auto fe = field.find_last_not_of(" \t\r");
+    out.push_back(fb == std::string::npos ? std::string() : field.substr(fb, fe - fb + 1));
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
@@ -110,20 +134,26 @@ void ReadCsv(
     const std::filesystem::path& path, const std::string& kind,
     const std::function<void(const std::vector<std::string>&, int, const std::string&)>& columns,
     const std::function<void(const std::vector<std::string>&, int)>& row) {
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(path.string(), 0, "a readable " + kind + " CSV file", "cannot open");
-  std::string line;
+  // The whole text, split as every reader splits lines (a BOM, "\r\n" and lone "\r" ends).
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  const std::vector<std::string_view> lines = SplitLines(text);
+  size_t next = 0;
   int line_no = 0;
+  std::string line;
   std::vector<std::string> header;
-  while (header.empty() && std::getline(in, line)) {
+  while (header.empty() && next < lines.size()) {
+    line = std::string(lines[next++]);
     ++line_no;
-    if (line.find_first_not_of(" \t\r") != std::string::npos) header = SplitCsv(line);
+    if (line.find_first_not_of(" \t") != std::string::npos) header = SplitCsv(line);
   }
   if (header.empty()) throw FileError(path.string(), 0, "a CSV header line", "an empty file");
   columns(header, line_no, line);
-  while (std::getline(in, line)) {
+  while (next < lines.size()) {
+    line = std::string(lines[next++]);
     ++line_no;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
     const auto fields = SplitCsv(line);
     if (fields.size() != header.size()) {
       throw FileError(path.string(), line_no,

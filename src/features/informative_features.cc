@@ -74,8 +74,10 @@ void FeatureOptions::Check() const {
                "features.orb_scale_factor must be in (1, 2], got {}", orb_scale_factor);
   SL_CHECK_MSG(orb_fast_threshold >= 1 && orb_fast_threshold <= 255,
                "features.orb_fast_threshold must be in [1, 255], got {}", orb_fast_threshold);
-  SL_CHECK_MSG(grid_cols >= 1 && grid_rows >= 1, "features.grid must be >= 1x1, got {}x{}",
-               grid_cols, grid_rows);
+  // grid_cols * grid_rows cells are allocated per keyframe (and the product must fit an int).
+  SL_CHECK_MSG(grid_cols >= 1 && grid_rows >= 1 && grid_cols <= 1000 && grid_rows <= 1000,
+               "features.grid must be from 1x1 to 1000x1000 cells, got {}x{}", grid_cols,
+               grid_rows);
   gradient.Check();
 }
 

@@ -108,11 +108,16 @@ std::vector<fs::path> ListFiles(const fs::path& dir, const std::vector<std::stri
   std::vector<fs::path> files;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (!entry.is_regular_file()) continue;
     const std::string ext = ToLower(entry.path().extension().string());
-    if (std::find(extensions.begin(), extensions.end(), ext) != extensions.end()) {
-      files.push_back(entry.path());
+    if (std::find(extensions.begin(), extensions.end(), ext) == extensions.end()) continue;
+    std::error_code status_ec;
+    const bool regular = entry.is_regular_file(status_ec);
+    // A link that loops or points nowhere, named as an image: the user meant it as one.
+    if (status_ec) {
+      throw FileError(entry.path().string(), 0, "an image file or a link to one",
+                      status_ec.message());
     }
+    if (regular) files.push_back(entry.path());
   }
   if (ec) throw FileError(dir.string(), 0, "a readable directory", ec.message());
   std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) {
@@ -121,14 +126,35 @@ std::vector<fs::path> ListFiles(const fs::path& dir, const std::vector<std::stri
   return files;
 }
 
+namespace {
+
+// What `path` is, for a message: "missing", "a regular file", "a directory", or why its status
+// cannot be read ("Too many levels of symbolic links", "Permission denied").
+std::string WhatIsThere(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found) return "missing";
+  if (ec) return ec.message();
+  switch (status.type()) {
+    case fs::file_type::regular:
+      return "a regular file";
+    case fs::file_type::directory:
+      return "a directory";
+    default:
+      return "neither a file nor a directory";
+  }
+}
+
+}  // namespace
+
 void RequireDirectory(const fs::path& dir, const std::string& what) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw FileError(dir.string(), 0, what, "missing");
+  if (!fs::is_directory(dir, ec)) throw FileError(dir.string(), 0, what, WhatIsThere(dir));
 }
 
 void RequireFile(const fs::path& file, const std::string& what) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw FileError(file.string(), 0, what, "missing");
+  if (!fs::is_regular_file(file, ec)) throw FileError(file.string(), 0, what, WhatIsThere(file));
 }
 
 Trajectory ReadGtTrajectory(const fs::path& path, TrajectoryFormat format) {

@@ -36,6 +36,8 @@ RosbagSpec ParseRosbagSpec(const std::string& spec) {
                    spec, key);
       SL_CHECK_MSG(!value.empty() && value.front() == '/',
                    "'{}': {}= needs a topic name starting with '/', got '{}'", spec, key, value);
+      SL_CHECK_MSG(field->empty(), "'{}': {}= given twice ('{}' and '{}'); give each key once",
+                   spec, key, *field, value);
       *field = value;
     }
   }

@@ -1,7 +1,9 @@
 #include "io/text_parsing.h"
 
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <system_error>
@@ -9,33 +11,28 @@
 #include <fmt/format.h>
 
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/text_lines.h"
 
 namespace sparseloop::io_internal {
 
 TextFile::TextFile(const std::filesystem::path& path) : name_(path.string()) {
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw FileError(name_, 0, "an existing file", "none");
+  if (!std::filesystem::exists(path, ec)) {
+    // A loop of symbolic links or a folder without search permission, not just a missing file.
+    throw FileError(name_, 0, "an existing file",
+                    ec && ec != std::errc::no_such_file_or_directory ? ec.message() : "none");
+  }
   if (std::filesystem::is_directory(path, ec)) {
     throw FileError(name_, 0, "a regular file", "a directory");
   }
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(name_, 0, "a readable file", "open failed");
+  if (!in) throw FileError(name_, 0, "a readable file", std::strerror(errno));
   std::ostringstream buffer;
   buffer << in.rdbuf();
   if (in.bad()) throw FileError(name_, 0, "a readable file", "read error");
   content_ = buffer.str();
-  std::string_view all(content_);
   int number = 1;
-  size_t start = 0;
-  while (start < all.size()) {
-    size_t end = all.find('\n', start);
-    if (end == std::string_view::npos) end = all.size();
-    std::string_view text = all.substr(start, end - start);
-    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
-    lines_.push_back({number, text});
-    ++number;
-    start = end + 1;
-  }
+  for (const std::string_view line : SplitLines(content_)) lines_.push_back({number++, line});
 }
 
 std::vector<TextLine> TextFile::DataLines() const {

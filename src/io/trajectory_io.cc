@@ -11,6 +11,7 @@
 #include "io/text_parsing.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/limits.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/quaternion.h"
 #include "sparseloop/io/atomic_file.h"
@@ -139,6 +140,20 @@ Rigid3d CheckedPose(const Matrix3x4d& m, const std::string& file, int line) {
   }
 }
 
+// A position coordinate: a finite number within +-kMaxCoordinate.
+double ParseCoordinate(std::string_view token, const std::string& file, int line,
+                       std::string_view what) {
+  const double v = ParseDouble(token, file, line, what);
+  if (std::abs(v) > kMaxCoordinate) {
+    throw FileError(file, line,
+                    fmt::format("a coordinate within +-{:g} for {} (larger ones overflow the "
+                                "computations on positions)",
+                                kMaxCoordinate, what),
+                    Quote(token));
+  }
+  return v;
+}
+
 void CheckColumnCount(size_t got, size_t expected, const std::string& file, int line,
                       const char* layout) {
   if (got != expected) {
@@ -175,9 +190,9 @@ Trajectory ReadTum(const TextFile& file, const TrajectoryReadOptions& options) {
     CheckColumnCount(t.size(), 8, name, line.number, "TUM: t x y z qx qy qz qw");
     StampedPose pose;
     pose.timestamp = ParseDouble(t[0], name, line.number, "timestamp");
-    const Eigen::Vector3d p(ParseDouble(t[1], name, line.number, "x"),
-                            ParseDouble(t[2], name, line.number, "y"),
-                            ParseDouble(t[3], name, line.number, "z"));
+    const Eigen::Vector3d p(ParseCoordinate(t[1], name, line.number, "x"),
+                            ParseCoordinate(t[2], name, line.number, "y"),
+                            ParseCoordinate(t[3], name, line.number, "z"));
     const auto q = QuaternionFromXyzw(
         ParseDouble(t[4], name, line.number, "qx"), ParseDouble(t[5], name, line.number, "qy"),
         ParseDouble(t[6], name, line.number, "qz"), ParseDouble(t[7], name, line.number, "qw"));
@@ -227,8 +242,9 @@ Trajectory ReadKitti(const TextFile& file, const TrajectoryReadOptions& options)
     Matrix3x4d m;
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 4; ++c) {
-        m(r, c) = ParseDouble(t[off + 4 * r + c], name, line.number,
-                              fmt::format("matrix entry ({},{})", r, c));
+        const std::string what = fmt::format("matrix entry ({},{})", r, c);
+        m(r, c) = c == 3 ? ParseCoordinate(t[off + 4 * r + c], name, line.number, what)
+                         : ParseDouble(t[off + 4 * r + c], name, line.number, what);
       }
     }
     if (!traj.poses.empty() && options.drop_duplicate_timestamps &&
@@ -271,9 +287,9 @@ Trajectory ReadEuroc(const TextFile& file, const TrajectoryReadOptions& options)
     CheckColumnCount(t.size(), columns, name, line.number,
                      "EuRoC CSV, same count as the first data line");
     const int64_t ns = ParseInt64(t[0], name, line.number, "timestamp [ns]");
-    const Eigen::Vector3d p(ParseDouble(t[1], name, line.number, "p_x"),
-                            ParseDouble(t[2], name, line.number, "p_y"),
-                            ParseDouble(t[3], name, line.number, "p_z"));
+    const Eigen::Vector3d p(ParseCoordinate(t[1], name, line.number, "p_x"),
+                            ParseCoordinate(t[2], name, line.number, "p_y"),
+                            ParseCoordinate(t[3], name, line.number, "p_z"));
     const auto q = QuaternionFromWxyz(
         ParseDouble(t[4], name, line.number, "q_w"), ParseDouble(t[5], name, line.number, "q_x"),
         ParseDouble(t[6], name, line.number, "q_y"), ParseDouble(t[7], name, line.number, "q_z"));
@@ -319,9 +335,10 @@ Trajectory ReadPositions(const TextFile& file, const TrajectoryReadOptions& opti
                      "positions: frame x y z ..., same count as the first data line");
     StampedPose pose;
     pose.frame = ParseInt64(t[0], name, line.number, "frame index");
-    pose.world_from_cam.translation = Eigen::Vector3d(ParseDouble(t[1], name, line.number, "x"),
-                                                      ParseDouble(t[2], name, line.number, "y"),
-                                                      ParseDouble(t[3], name, line.number, "z"));
+    pose.world_from_cam.translation =
+        Eigen::Vector3d(ParseCoordinate(t[1], name, line.number, "x"),
+                        ParseCoordinate(t[2], name, line.number, "y"),
+                        ParseCoordinate(t[3], name, line.number, "z"));
     for (size_t i = 4; i < t.size(); ++i) {
       ParseDouble(t[i], name, line.number, fmt::format("column {}", i + 1));
     }

@@ -1,7 +1,9 @@
 #include "sparseloop/map/map_database.h"
 
 #include <sqlite3.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -221,9 +223,46 @@ void MapDatabaseOptions::Check() const {
   SL_CHECK_MSG(commit_every >= 1, "commit_every must be >= 1, got {}", commit_every);
 }
 
+namespace {
+
+// What stops `path` from holding a map, before SQLite is asked (whose words would be "disk I/O
+// error" for /dev/null, or "attempt to write a readonly database" while reading a PRAGMA): not a
+// regular file, or a folder where the -wal / -shm files cannot be created. Empty when fine.
+std::string MapPathProblem(const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec && status.type() != fs::file_type::not_found) {
+    return fmt::format("expected a map database file, got {}", ec.message());
+  }
+  if (status.type() != fs::file_type::not_found && status.type() != fs::file_type::regular) {
+    return fmt::format(
+        "expected a map database file (a regular file or a new file name), got {}",
+        status.type() == fs::file_type::directory ? "a directory" : "a device, FIFO or socket");
+  }
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir, ec)) {
+    return fmt::format("expected a map in an existing folder, got {} missing", dir.string());
+  }
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    return fmt::format(
+        "expected a writable folder (SQLite keeps {}-wal and -shm beside the map), got {}: {}",
+        path.filename().string(), dir.string(), std::strerror(errno));
+  }
+  if (status.type() == fs::file_type::regular && ::access(path.c_str(), R_OK | W_OK) != 0) {
+    return fmt::format("expected a readable and writable map file, got {}", std::strerror(errno));
+  }
+  return {};
+}
+
+}  // namespace
+
 std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path,
                                                const MapDatabaseOptions& options) {
   options.Check();
+  if (const std::string problem = MapPathProblem(path); !problem.empty()) {
+    throw MapDatabaseError(path.string() + ": " + problem);
+  }
   sqlite3* db = nullptr;
   const int rc =
       sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);

@@ -46,7 +46,9 @@ void VerifyOptions::Check() const {
                "verify.threshold_px must be > 0 pixels, got {}", threshold_px);
   SL_CHECK_MSG(confidence > 0 && confidence < 1, "verify.confidence must be in (0, 1), got {}",
                confidence);
-  SL_CHECK_MSG(max_iterations >= 1, "verify.max_iterations must be >= 1, got {}", max_iterations);
+  // An upper bound keeps a pair's cost bounded when the inlier ratio is low (no early stop).
+  SL_CHECK_MSG(max_iterations >= 1 && max_iterations <= 100000,
+               "verify.max_iterations must be in [1, 100000], got {}", max_iterations);
   SL_CHECK_MSG(local_optimization_rounds >= 0 && local_optimization_rounds <= 100,
                "verify.local_optimization_rounds must be in [0, 100], got {}",
                local_optimization_rounds);

@@ -1,6 +1,8 @@
 #include "sparseloop/pipeline/config.h"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -129,7 +131,7 @@ ConfigKey PlaneNormalKey() {
 void AddFeatureKeys(KeyList& k) {
   const std::string f = "detector.features.";
   k.Add(f + "max_features", SL_FIELD(detector.features.max_features), "features",
-        "K, informative features kept per keyframe (>= 1)");
+        "K, informative features kept per keyframe ([5, 10000])");
   k.AddEnum(
       f + "ranking", SL_FIELD(detector.features.ranking),
       {FeatureRanking::kPopcount, FeatureRanking::kResponse, FeatureRanking::kGridResponse},
@@ -138,9 +140,9 @@ void AddFeatureKeys(KeyList& k) {
   k.Add(f + "orb_candidates", SL_FIELD(detector.features.orb_candidates), "features",
         "ORB detections before ranking (>= K)");
   k.Add(f + "orb_levels", SL_FIELD(detector.features.orb_levels), "levels",
-        "ORB pyramid levels (>= 1)");
+        "ORB pyramid levels ([1, 16])");
   k.Add(f + "orb_scale_factor", SL_FIELD(detector.features.orb_scale_factor), "ratio",
-        "ORB pyramid scale step (> 1)");
+        "ORB pyramid scale step (1, 2]");
   k.Add(f + "orb_fast_threshold", SL_FIELD(detector.features.orb_fast_threshold), "grey levels",
         "FAST threshold");
   k.AddEnum(
@@ -148,9 +150,9 @@ void AddFeatureKeys(KeyList& k) {
       {OrbBackend::kOpenCv, OrbBackend::kFast}, [](OrbBackend b) { return ToString(b); },
       "ORB implementation (same output; fast is about 3x faster)");
   k.Add(f + "grid_cols", SL_FIELD(detector.features.grid_cols), "cells",
-        "grid ranking: columns (>= 1)");
+        "grid ranking: columns ([1, 1000])");
   k.Add(f + "grid_rows", SL_FIELD(detector.features.grid_rows), "cells",
-        "grid ranking: rows (>= 1)");
+        "grid ranking: rows ([1, 1000])");
   k.Add(f + "use_gradient_mask", SL_FIELD(detector.features.use_gradient_mask), "",
         "keep features in the high-gradient area only when the keyframe brings no mask");
   k.Add(f + "gradient.block_size", SL_FIELD(detector.features.gradient.block_size), "px",
@@ -158,7 +160,7 @@ void AddFeatureKeys(KeyList& k) {
   k.Add(f + "gradient.threshold_offset", SL_FIELD(detector.features.gradient.threshold_offset),
         "grey levels", "gradient mask: selected when |grad| > block median + offset");
   k.Add(f + "gradient.dilate_radius", SL_FIELD(detector.features.gradient.dilate_radius), "px",
-        "gradient mask: dilation of the selection");
+        "gradient mask: dilation of the selection [0, 64]");
 }
 
 // detector.search.*: the search area.
@@ -198,14 +200,15 @@ void AddSearchKeys(KeyList& k) {
   k.Add(s + "refit_growth", SL_FIELD(detector.search.refit_growth), "fraction",
         "trajectory growth that triggers a plane refit and grid rebuild (> 0)");
   k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
-        "grid cell size (0: 4x the mean in-plane step)");
+        "grid cell size (0: 4x the mean in-plane step; >= 0; clamped to [1/256, 1] x the "
+        "trajectory's extent)");
 }
 
 // detector.match.*, detector.verify.*, detector.local_map.*: matching and verification.
 void AddMatchingKeys(KeyList& k) {
   const std::string m = "detector.match.";
   k.Add(m + "max_distance", SL_FIELD(detector.match.max_distance), "bits",
-        "largest accepted Hamming distance (of 256)");
+        "largest accepted Hamming distance [0, 256]");
   k.Add(m + "ratio", SL_FIELD(detector.match.ratio), "ratio",
         "best < ratio x second best, (0, 1] (1: no ratio test)");
   k.Add(m + "mutual", SL_FIELD(detector.match.mutual), "",
@@ -217,9 +220,9 @@ void AddMatchingKeys(KeyList& k) {
   k.Add(v + "confidence", SL_FIELD(detector.verify.confidence), "probability",
         "RANSAC confidence (0, 1)");
   k.Add(v + "max_iterations", SL_FIELD(detector.verify.max_iterations), "iterations",
-        "RANSAC iterations (>= 1)");
+        "RANSAC iterations ([1, 100000])");
   k.Add(v + "local_optimization_rounds", SL_FIELD(detector.verify.local_optimization_rounds),
-        "rounds", "essential matrix: local optimisation rounds after RANSAC (>= 0)");
+        "rounds", "essential matrix: local optimisation rounds after RANSAC [0, 100]");
   k.Add(v + "min_inliers", SL_FIELD(detector.verify.min_inliers), "inliers",
         "a pair with fewer geometric inliers fails");
   k.Add(v + "min_inlier_ratio", SL_FIELD(detector.verify.min_inlier_ratio), "ratio",
@@ -375,19 +378,19 @@ void AddDetectorPolicyKeys(KeyList& k) {
 // detector.ann.* (the approximate index) and detector.seed.
 void AddAnnKeys(KeyList& k) {
   const std::string a = "detector.ann.";
-  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node (>= 2)");
+  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node ([2, 256])");
   k.Add(a + "ef_construction", SL_FIELD(detector.ann.ef_construction), "candidates",
-        "HNSW candidate list while inserting (>= 1)");
+        "HNSW candidate list while inserting ([1, 4096])");
   k.Add(a + "ef_search", SL_FIELD(detector.ann.ef_search), "candidates",
-        "HNSW candidate list while searching (>= neighbors)");
+        "HNSW candidate list while searching (>= neighbors, at most 4096)");
   k.Add(a + "neighbors", SL_FIELD(detector.ann.neighbors), "descriptors",
-        "nearest stored descriptors per query descriptor (>= 1)");
+        "nearest stored descriptors per query descriptor ([1, 256])");
   k.Add(a + "max_distance", SL_FIELD(detector.ann.max_distance), "bits",
         "a farther neighbour votes for nothing [0, 256]");
   k.Add(a + "max_candidates", SL_FIELD(detector.ann.max_candidates), "keyframes",
         "top-voted keyframes matched and verified (>= 1)");
   k.Add(a + "num_threads", SL_FIELD(detector.ann.num_threads), "threads",
-        "OpenMP threads of the index (1: deterministic inserts)");
+        "OpenMP threads of the index (1: deterministic inserts; [1, 256])");
   k.Add("detector.seed", SL_FIELD(detector.seed), "", "RNG seed of the verification");
 }
 
@@ -449,7 +452,7 @@ void AddOptimizerKeys(KeyList& k) {
         "switchable: std-dev of the switch prior");
   k.Add(p + "switch_reject_below", SL_FIELD(optimizer.switch_reject_below), "",
         "switchable: a loop whose switch ends below this is rejected");
-  k.Add(p + "num_threads", SL_FIELD(optimizer.num_threads), "threads", "Ceres threads (>= 1)");
+  k.Add(p + "num_threads", SL_FIELD(optimizer.num_threads), "threads", "Ceres threads ([1, 256])");
   k.Add(p + "reduce_chains", SL_FIELD(optimizer.reduce_chains), "",
         "Sim(3): solve without odometry-chain vertices, recover them after");
   k.Add(p + "max_chain_length", SL_FIELD(optimizer.max_chain_length), "edges",
@@ -615,6 +618,44 @@ const std::vector<ConfigKey>& ConfigKeys() {
   return keys;
 }
 
+namespace {
+
+// The key of `config` to blame for `message`, a failed Check() of `options`: the key whose return
+// to its default changes the outcome, preferring one whose last part the message names (four keys
+// end in rotation_sigma_rad). Empty when none does.
+std::string BlamedKey(const nlohmann::json& config, const PipelineOptions& options,
+                      const std::string& message) {
+  const PipelineOptions defaults;
+  std::string blamed;
+  for (const ConfigKey& key : ConfigKeys()) {
+    bool given = false;
+    try {
+      given = config.contains(Pointer(key.path));
+    } catch (const nlohmann::json::exception&) {
+      given = false;
+    }
+    if (!given) continue;
+    PipelineOptions reverted = options;
+    try {
+      key.set(key.get(defaults), &reverted);
+    } catch (const ConfigValueError&) {
+      continue;
+    }
+    SyncMirroredOptions(&reverted);
+    try {
+      reverted.Check();
+    } catch (const std::invalid_argument& e) {
+      if (e.what() == message) continue;  // not this key
+    }
+    const std::string leaf = key.path.substr(key.path.rfind('.') + 1);
+    if (message.find(leaf) != std::string::npos) return key.path;
+    if (blamed.empty()) blamed = key.path;
+  }
+  return blamed;
+}
+
+}  // namespace
+
 void ApplyConfig(const nlohmann::json& config, const std::string& source,
                  PipelineOptions* options) {
   ReadObject(config, "", source, options);
@@ -622,7 +663,11 @@ void ApplyConfig(const nlohmann::json& config, const std::string& source,
   try {
     options->Check();
   } catch (const std::invalid_argument& e) {
-    throw FileError(source, 0, "valid option values", e.what());
+    const std::string key = BlamedKey(config, *options, e.what());
+    throw FileError(
+        source, 0,
+        key.empty() ? "valid option values" : fmt::format("a valid value for \"{}\"", key),
+        e.what());
   }
 }
 void ApplyConfigOverride(const std::string& key, const std::string& value,
@@ -662,20 +707,88 @@ void ApplyConfigOverride(const std::string& key, const std::string& value,
   SyncMirroredOptions(options);
 }
 
+namespace {
+
+// 1 + the number of line ends before `offset` ("\n", "\r\n" or a lone "\r").
+int LineAt(const std::string& text, size_t offset) {
+  offset = std::min(offset, text.size());
+  int line = 1;
+  for (size_t i = 0; i < offset; ++i) {
+    if (text[i] == '\n' || (text[i] == '\r' && (i + 1 >= text.size() || text[i + 1] != '\n')))
+      ++line;
+  }
+  return line;
+}
+
+// The line of the `n`-th (0-based) `"key"` followed by a colon in `text`; 0 when not found (a key
+// written with escapes).
+int LineOfKey(const std::string& text, const std::string& key, size_t n) {
+  const std::string quoted = "\"" + key + "\"";
+  for (size_t pos = text.find(quoted); pos != std::string::npos; pos = text.find(quoted, pos + 1)) {
+    const size_t after = text.find_first_not_of(" \t\r\n", pos + quoted.size());
+    if (after == std::string::npos || text[after] != ':') continue;
+    if (n-- == 0) return LineAt(text, pos);
+  }
+  return 0;
+}
+
+// Parses `text`, refusing a key given twice in one object (JSON allows it, and the last value
+// would silently win): FileError with the key's dotted path and the line of the repeat.
+nlohmann::json ParseWithoutDuplicateKeys(const std::string& text, const std::string& name) {
+  std::vector<std::pair<std::string, std::set<std::string>>> objects;  // path, keys seen
+  std::map<std::string, size_t> seen_anywhere;                         // key -> occurrences
+  std::string last_key;
+  const nlohmann::json::parser_callback_t check =
+      [&](int /*depth*/, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        using Event = nlohmann::json::parse_event_t;
+        if (event == Event::object_start) {
+          const std::string parent = objects.empty() ? "" : objects.back().first;
+          const std::string path = objects.empty() || last_key.empty() ? parent
+                                   : parent.empty()                    ? last_key
+                                                                       : parent + "." + last_key;
+          objects.push_back({path, {}});
+          last_key.clear();
+        } else if (event == Event::object_end) {
+          if (!objects.empty()) objects.pop_back();
+          last_key.clear();
+        } else if (event == Event::key && parsed.is_string()) {
+          last_key = parsed.get<std::string>();
+          const size_t occurrence = seen_anywhere[last_key]++;
+          if (!objects.empty() && !objects.back().second.insert(last_key).second) {
+            const std::string& parent = objects.back().first;
+            throw FileError(name, LineOfKey(text, last_key, occurrence), "each key once per object",
+                            fmt::format("\"{}\" a second time",
+                                        parent.empty() ? last_key : parent + "." + last_key));
+          }
+        } else if (event == Event::array_start || event == Event::value) {
+          last_key.clear();
+        }
+        return true;
+      };
+  return nlohmann::json::parse(text, check);
+}
+
+}  // namespace
+
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    throw FileError(path.string(), 0, "a JSON configuration file", "a directory");
+  }
   std::ifstream in(path);
-  if (!in) throw FileError(path.string(), 0, "a readable JSON configuration file");
+  if (!in) {
+    throw FileError(path.string(), 0, "a readable JSON configuration file",
+                    std::filesystem::exists(path, ec) ? std::strerror(errno) : "no such file");
+  }
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string text = ss.str();
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text);
+    j = ParseWithoutDuplicateKeys(text, path.string());
   } catch (const nlohmann::json::parse_error& e) {
     // Convert the byte offset into a line number.
-    const size_t offset = std::min<size_t>(e.byte, text.size());
-    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + offset, '\n'));
-    throw FileError(path.string(), line, "valid JSON", e.what());
+    throw FileError(path.string(), LineAt(text, e.byte), "valid JSON", e.what());
   } catch (const nlohmann::json::exception& e) {
     // E.g. out_of_range 406, a number too large for a double (found by fuzz_config); the parser
     // gives no position for it.

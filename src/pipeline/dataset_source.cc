@@ -1,5 +1,10 @@
 #include "sparseloop/pipeline/dataset_source.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -35,8 +40,28 @@ Dataset OpenDatasetSpec(const std::string& spec, const DatasetOptions& options) 
   return OpenDataset(spec, options);
 }
 
+namespace {
+
+// The reason `path` cannot be opened for reading; empty when it can.
+std::string OpenProblem(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return std::strerror(errno);
+  ::close(fd);
+  return {};
+}
+
+}  // namespace
+
+std::string ImageReadProblem(const std::filesystem::path& path) {
+  const std::string problem = OpenProblem(path);
+  return problem.empty() ? "not a decodable image" : problem;
+}
+
 cv::Mat ReadFrameGray(const Dataset& dataset, const DatasetFrame& frame) {
-  if (!dataset.image_reader) return cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+  if (!dataset.image_reader) {
+    if (!OpenProblem(frame.image_path).empty()) return {};
+    return cv::imread(frame.image_path.string(), cv::IMREAD_GRAYSCALE);
+  }
   GrayImage image = dataset.image_reader->ReadGray(frame);
   return cv::Mat(image.height, image.width, CV_8UC1, image.pixels.data()).clone();
 }

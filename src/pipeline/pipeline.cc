@@ -17,9 +17,19 @@
 
 namespace sparseloop {
 
+namespace {
+constexpr int kMaxThreads = 256;
+}  // namespace
+
 void PipelineOptions::Check() const {
   detector.Check();
   optimizer.Check();
+  // Threads started per solve / per index query: beyond this a value only costs (Ceres warns
+  // through glog, which then prints "Logging before InitGoogleLogging()").
+  SL_CHECK_MSG(optimizer.num_threads <= kMaxThreads, "num_threads must be in [1, {}], got {}",
+               kMaxThreads, optimizer.num_threads);
+  SL_CHECK_MSG(detector.ann.num_threads <= kMaxThreads,
+               "ann.num_threads must be in [1, {}], got {}", kMaxThreads, detector.ann.num_threads);
   odometry.Check();
   LoopEdgeOptions::Check();
   SL_CHECK_MSG(raw_association_max_dt > 0, "raw_association_max_dt must be > 0");
@@ -277,11 +287,12 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
     const KeyframeInput input = FrameKeyframe(dataset, i, raw, step_covariances,
                                               have_mapped ? mapped_dir : std::filesystem::path());
     if (input.image.empty()) {
+      const std::string problem = ImageReadProblem(frame.image_path);
       if (!options.skip_unreadable_frames) {
-        throw FileError(frame.image_path.string(), 0, "a readable image");
+        throw FileError(frame.image_path.string(), 0, "a readable image", problem);
       }
-      Logger().warn("skipping frame {}: cannot read image {}", frame.index,
-                    frame.image_path.string());
+      Logger().warn("skipping frame {}: cannot read image {}: {}", frame.index,
+                    frame.image_path.string(), problem);
       ++result.skipped_frames;
       continue;
     }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -11,6 +12,7 @@
 
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/quaternion.h"
+#include "sparseloop/core/text_lines.h"
 
 namespace sparseloop {
 namespace {
@@ -299,10 +301,11 @@ PoseGraph ReadG2o(std::istream& in, const std::string& name) {
   Parser p;
   p.name = name;
   G2oRecords records(p);
-  std::string line;
-  while (std::getline(in, line)) {
+  // The whole text, split as every reader splits lines (a BOM, "\r\n" and lone "\r" ends).
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  for (const std::string_view view : SplitLines(text)) {
+    const std::string line(view);
     ++p.line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
     p.fields.clear();
     p.fields.str(line);
     std::string tag;

@@ -35,11 +35,16 @@ const uint8_t* Codes(std::span<const Descriptor> d) {
 }  // namespace
 
 void BinaryAnnOptions::Check() const {
-  SL_CHECK_MSG(hnsw_m >= 2, "ann.hnsw_m must be >= 2, got {}", hnsw_m);
-  SL_CHECK_MSG(ef_construction >= 1, "ann.ef_construction must be >= 1, got {}", ef_construction);
-  SL_CHECK_MSG(neighbors >= 1, "ann.neighbors must be >= 1, got {}", neighbors);
+  // Upper bounds keep the memory per stored descriptor and the cost per query bounded (a value
+  // beyond them only costs: recall is saturated far below).
+  SL_CHECK_MSG(hnsw_m >= 2 && hnsw_m <= 256, "ann.hnsw_m must be in [2, 256], got {}", hnsw_m);
+  SL_CHECK_MSG(ef_construction >= 1 && ef_construction <= 4096,
+               "ann.ef_construction must be in [1, 4096], got {}", ef_construction);
+  SL_CHECK_MSG(neighbors >= 1 && neighbors <= 256, "ann.neighbors must be in [1, 256], got {}",
+               neighbors);
   SL_CHECK_MSG(ef_search >= neighbors, "ann.ef_search ({}) must be >= ann.neighbors ({})",
                ef_search, neighbors);
+  SL_CHECK_MSG(ef_search <= 4096, "ann.ef_search must be at most 4096, got {}", ef_search);
   SL_CHECK_MSG(max_distance >= 0 && max_distance <= kBits,
                "ann.max_distance must be in [0, 256] bits, got {}", max_distance);
   SL_CHECK_MSG(max_candidates >= 1, "ann.max_candidates must be >= 1, got {}", max_candidates);

@@ -20,6 +20,7 @@
 #include "bag/message_convert.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/output_paths.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/config.h"
 #include "sparseloop/pipeline/pipeline.h"
@@ -56,6 +57,22 @@ void NodeParams::Check() const {
   }
   if (pose_buffer < 1) {
     throw std::invalid_argument(fmt::format("~pose_buffer must be >= 1, got {}", pose_buffer));
+  }
+  // No input written over (and not both outputs in one file: the second would replace the first),
+  // then the output files themselves: checked now, not at finish, when the session's work would
+  // be lost.
+  CheckOutputsAreNotInputs({{"~trajectory_file", trajectory_file}, {"~loops_file", loops_file}},
+                           {{"~config_file", config_file}});
+  CheckOutputsAreNotInputs({{"~loops_file", loops_file}}, {{"~trajectory_file", trajectory_file}});
+  for (const auto& [name, path] :
+       {std::pair<const char*, const std::string&>{"~trajectory_file", trajectory_file},
+        {"~loops_file", loops_file}}) {
+    if (path.empty()) continue;
+    try {
+      CheckOutputFile(path);
+    } catch (const FileError& e) {
+      throw std::invalid_argument(fmt::format("{} {}", name, e.what()));
+    }
   }
 }
 

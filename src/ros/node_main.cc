@@ -17,10 +17,13 @@
 #include <ros/ros.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
+#include <iomanip>
 #include <memory>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -60,6 +63,29 @@ const std::set<std::string> kNodeParams = {
     "config",      "config_file",     "solve_while_running", "max_pose_dt",       "image_queue",
     "pose_buffer", "wait_for_points", "trajectory_file",     "loops_file",        "pose_type",
     "world_frame", "camera_frame",    "image_transport",     "diagnostics_period"};
+
+// An integer parameter in [lo, hi], `fallback` when unset. The value is read as given: roscpp
+// stores `_image_queue:=3000000000` as a double, which an int parameter turned into -2147483648.
+int IntParam(ros::NodeHandle& pnh, const std::string& name, int fallback, int lo, int hi) {
+  XmlRpc::XmlRpcValue v;
+  if (!pnh.getParam(name, v)) return fallback;
+  const bool is_int = v.getType() == XmlRpc::XmlRpcValue::TypeInt;
+  const bool is_double = v.getType() == XmlRpc::XmlRpcValue::TypeDouble;
+  const double d = is_int      ? static_cast<double>(static_cast<int>(v))
+                   : is_double ? static_cast<double>(v)
+                               : 0.0;
+  if (!(is_int || is_double) || d != std::floor(d) || d < lo || d > hi) {
+    std::ostringstream message;
+    message << pnh.resolveName(name) << " must be an integer in [" << lo << ", " << hi << "], got ";
+    if (is_int || is_double) {
+      message << std::fixed << std::setprecision(std::floor(d) == d ? 0 : 6) << d;
+    } else {
+      message << "a value of another type";
+    }
+    throw std::invalid_argument(message.str());
+  }
+  return static_cast<int>(d);
+}
 
 nlohmann::json ToJson(XmlRpc::XmlRpcValue& v, const std::string& name) {
   switch (v.getType()) {
@@ -102,8 +128,8 @@ class Node {
     pnh.param<std::string>("config_file", p.config_file, "");
     pnh.param("solve_while_running", p.solve_while_running, p.solve_while_running);
     pnh.param("max_pose_dt", p.max_pose_dt, p.max_pose_dt);
-    pnh.param("image_queue", p.image_queue, p.image_queue);
-    pnh.param("pose_buffer", p.pose_buffer, p.pose_buffer);
+    p.image_queue = IntParam(pnh, "image_queue", p.image_queue, 1, 100000);
+    p.pose_buffer = IntParam(pnh, "pose_buffer", p.pose_buffer, 1, 100000000);
     pnh.param("wait_for_points", p.wait_for_points, p.wait_for_points);
     pnh.param<std::string>("trajectory_file", p.trajectory_file, "");
     pnh.param<std::string>("loops_file", p.loops_file, "");
@@ -112,6 +138,12 @@ class Node {
     pnh.param<std::string>("camera_frame", camera_frame_, "camera");
     pnh.param<std::string>("image_transport", transport_, "raw");
     pnh.param("diagnostics_period", diagnostics_period_, 1.0);
+    if (!(diagnostics_period_ >= 0.0 && diagnostics_period_ <= 3600.0)) {
+      std::ostringstream message;
+      message << pnh.resolveName("diagnostics_period")
+              << " must be in [0, 3600] s (0: no diagnostics), got " << diagnostics_period_;
+      throw std::invalid_argument(message.str());
+    }
     if (pose_type_ != "pose" && pose_type_ != "pose_cov" && pose_type_ != "odometry" &&
         pose_type_ != "tf") {
       throw std::invalid_argument(pnh.resolveName("pose_type") +
@@ -436,7 +468,35 @@ class Node {
 }  // namespace
 }  // namespace sparseloop::ros_node
 
+namespace {
+
+// `sparseloop_node --help`: what it subscribes and publishes, without a ROS master.
+bool AskedForHelp(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") return true;
+  }
+  return false;
+}
+
+constexpr const char* kUsage =
+    "Usage: sparseloop_node [__name:=NAME] [image:=TOPIC] [camera_info:=TOPIC] [pose:=TOPIC]\n"
+    "                       [mapped_points:=TOPIC] [_PARAM:=VALUE ...]\n"
+    "The sparseloop loop closer as a ROS 1 node (docs/ROS.md); needs a ROS master.\n"
+    "Subscribes image, camera_info, pose (~pose_type) and mapped_points; publishes ~loops, ~path,\n"
+    "~markers and /diagnostics; service ~finish. Private parameters: config (a dictionary of\n"
+    "`sparseloop config --dump` keys), config_file, solve_while_running, max_pose_dt,\n"
+    "image_queue, pose_buffer, wait_for_points, trajectory_file, loops_file, pose_type\n"
+    "(pose|pose_cov|odometry|tf), world_frame, camera_frame, image_transport (raw|compressed),\n"
+    "diagnostics_period.\n";
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  if (AskedForHelp(argc, argv)) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
   ros::init(argc, argv, "sparseloop");
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");

@@ -27,7 +27,7 @@ namespace {
 ros::Time Record(double stamp) { return ros::Time(stamp + kRecordOffset); }
 }  // namespace
 
-void TestBagWriter::Image(const std::string& topic, double stamp, int width, int height,
+void TestBagWriter::Image(const std::string& topic, double stamp, uint32_t width, uint32_t height,
                           const std::string& encoding, int step, const std::vector<uint8_t>& data) {
   sensor_msgs::Image m;
   m.header.stamp = ros::Time(stamp);

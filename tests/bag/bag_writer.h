@@ -15,8 +15,9 @@ class TestBagWriter {
  public:
   explicit TestBagWriter(const std::string& path);
   ~TestBagWriter();
-  // sensor_msgs/Image (encoding mono8, bgr8, ...) with rows of `step` bytes.
-  void Image(const std::string& topic, double stamp, int width, int height,
+  // sensor_msgs/Image (encoding mono8, bgr8, ...) with rows of `step` bytes (uint32 sizes, as in
+  // the message).
+  void Image(const std::string& topic, double stamp, uint32_t width, uint32_t height,
              const std::string& encoding, int step, const std::vector<uint8_t>& data);
   // sensor_msgs/CompressedImage (format "png", "jpeg").
   void CompressedImage(const std::string& topic, double stamp, const std::string& format,

@@ -368,6 +368,15 @@ TEST(RosbagDataset, BadBagsAndSpecsAreClearErrors) {
     EXPECT_NE(std::string(e.what()).find("message 0 of topic /cam0/image_raw"), std::string::npos)
         << e.what();
   }
+  // A width beyond int (uint32 in the message) is refused as given: it was printed as -294967296.
+  const fs::path wide = test::TempDir("wide") / "wide.bag";
+  {
+    test::TestBagWriter bag(wide.string());
+    bag.Image(kImage, 0.5, 4000000000u, 32, "mono8", 64, std::vector<uint8_t>(64 * 32, 0));
+    bag.Close();
+  }
+  expect_file_error(Spec(wide, fmt::format("image={}", kImage)), wide.string(),
+                    "got 4000000000x32");
   // Spec errors: unknown key, no image topic, a topic without '/'; no intrinsics anywhere.
   EXPECT_THROW(OpenDatasetSpec(Spec(fx.bags.mono, "image=/cam0/image_raw&imu=/imu")),
                std::invalid_argument);

@@ -207,6 +207,22 @@ TEST(ReadDetections, ParsesColumnsByHeaderName) {
   EXPECT_TRUE(d[0].accepted);  // no accepted column: every detection counts as accepted
 }
 
+// loops.csv as run / detect write it, read back whatever it holds: an image name with a comma or a
+// quote is a quoted field (RFC 4180), a BOM and CR-only line ends read as "\n" files do.
+TEST(ReadDetections, QuotedImageNamesBomAndCrOnlyLinesReadBack) {
+  const auto dir = test::TempDir();
+  const auto path = dir / "loops.csv";
+  std::ofstream(path, std::ios::binary)
+      << "\xEF\xBB\xBFquery,match,score,query_image,match_image\r"
+      << "5,1,0.5,\"a,b.png\",\"say \"\"hi\"\".png\"\r6,2,0.25,c.png,d.png\r";
+  const auto d = ReadDetections(path);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[0].query, 5);
+  EXPECT_EQ(d[0].score, 0.5);
+  EXPECT_EQ(d[1].query, 6);
+  EXPECT_EQ(d[1].match, 2);
+}
+
 TEST(ReadDetections, ReadsTheAcceptedColumnEmptyMeaningNot) {
   const auto dir = test::TempDir();
   const auto path = dir / "loops.csv";

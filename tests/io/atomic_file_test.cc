@@ -1,4 +1,5 @@
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/output_paths.h"
 
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -160,6 +161,66 @@ TEST(AtomicFile, CheckOutputDirectory) {
   } catch (const FileError& e) {
     EXPECT_EQ(e.file(), (dir / "loops.csv").string());
   }
+}
+
+// `DIR/missing/..` is DIR (where create_directories + a write put the files): the folder checked
+// is the one written to; links and `..` are resolved before paths are compared.
+TEST(AtomicFile, ResolvedPathAndSamePathSeeThroughLinksAndDotDot) {
+  namespace fs = std::filesystem;
+  const auto dir = fs::weakly_canonical(test::TempDir());
+  EXPECT_EQ(ResolvedPath(dir / "missing" / ".."), dir);
+  EXPECT_EQ(ResolvedPath(dir / "a" / "b" / ".." / "c.txt"), dir / "a" / "c.txt");
+  const auto gt = test::WriteText(dir / "gt.txt", "x");
+  fs::create_symlink(gt, dir / "link.txt");
+  ASSERT_EQ(::link(gt.c_str(), (dir / "hard.txt").c_str()), 0);
+  EXPECT_TRUE(SamePath(gt, dir / "link.txt"));
+  EXPECT_TRUE(SamePath(gt, dir / "hard.txt"));
+  EXPECT_TRUE(SamePath(gt, dir / "missing" / ".." / "gt.txt"));
+  EXPECT_TRUE(SamePath(dir / "new.txt", dir / "." / "new.txt"));
+  EXPECT_FALSE(SamePath(gt, dir / "other.txt"));
+}
+
+// An output that is an input is refused before anything is written, naming both; empty paths are
+// not compared.
+TEST(AtomicFile, AnOutputThatIsAnInputIsRefusedNamingBoth) {
+  namespace fs = std::filesystem;
+  const auto dir = test::TempDir();
+  const auto gt = test::WriteText(dir / "g.txt", "keep");
+  fs::create_symlink(gt, dir / "via_link.json");
+  for (const fs::path& out : {gt, dir / "via_link.json", dir / "sub" / ".." / "g.txt"}) {
+    SCOPED_TRACE(out.string());
+    try {
+      CheckOutputsAreNotInputs({{"--json", out}}, {{"--est", dir / "e.txt"}, {"--gt", gt}});
+      ADD_FAILURE() << "accepted an output that is an input";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("--json " + out.string()), std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find("--gt " + gt.string()), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(CheckOutputsAreNotInputs({{"--json", dir / "m.json"}, {"--out", ""}},
+                                           {{"--gt", gt}, {"--loops", ""}}));
+  EXPECT_EQ(test::ReadText(gt), "keep");
+}
+
+// A path longer than the file system takes is refused when checked, not after the work
+// ("File name too long"): a name over NAME_MAX, a path over PATH_MAX, the temporary's suffix
+// included.
+TEST(AtomicFile, OverlongPathsAreRefusedWhenChecked) {
+  const auto dir = test::TempDir();
+  const std::string long_name(250, 'n');  // fits, but not with ".tmp.<pid>"
+  EXPECT_THROW(CheckOutputFile(dir / long_name), FileError);
+  EXPECT_NO_THROW(CheckOutputFile(dir / std::string(200, 'n')));
+  std::filesystem::path deep = dir;
+  for (int i = 0; i < 22; ++i) deep /= std::string(200, 'd');  // 4,400 characters
+  try {
+    CheckOutputDirectory(deep, {"trajectory.txt"});
+    ADD_FAILURE() << "accepted a 4,400-character folder";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.file(), deep.string());
+    EXPECT_NE(e.got().find("characters"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(CheckOutputDirectory(dir / std::string(300, 'x')), FileError);
 }
 
 }  // namespace

@@ -46,6 +46,10 @@ TEST(RosbagSpec, BadSpecsNameTheProblem) {
   EXPECT_NE(message("rosbag:a.bag?image=").find("image= needs a topic"), std::string::npos);
   EXPECT_NE(message("rosbag:a.bag?pose=/p").find("no image topic"), std::string::npos);
   EXPECT_NE(message("rosbag:a.bag").find("no image topic"), std::string::npos);
+  // A key given twice silently used the last.
+  EXPECT_NE(message("rosbag:a.bag?image=/a&image=/b").find("image= given twice ('/a' and '/b')"),
+            std::string::npos)
+      << message("rosbag:a.bag?image=/a&image=/b");
 }
 
 }  // namespace

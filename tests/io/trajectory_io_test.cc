@@ -94,6 +94,13 @@ const MalformedCase kMalformed[] = {
     {"positions_frame", F::kPositions, "0 1 2 3\n1.5 1 2 3\n", 2, "integer"},
     {"positions_inf", F::kPositions, "0 1 2 3 -inf\n", 1, "column 5"},
     {"positions_order", F::kPositions, "0 1 2 3\n2 1 2 3\n1 1 2 3\n", 3, "frame index greater"},
+    // positions beyond kMaxCoordinate (a file scaled by 1e200: sums of squares overflow)
+    {"tum_huge_x", F::kTum, "1.0 0 0 0 0 0 0 1\n2.0 1e200 0 0 0 0 0 1\n", 2,
+     "coordinate within +-1e+15 for x"},
+    {"kitti_huge_t", F::kKitti, "1 0 0 0 0 1 0 0 0 0 1 -2e16\n", 1,
+     "coordinate within +-1e+15 for matrix entry (2,3)"},
+    {"euroc_huge_p", F::kEuroc, "100,0,1e30,0,1,0,0,0\n", 1, "coordinate within +-1e+15 for p_y"},
+    {"positions_huge", F::kPositions, "0 1 2 3\n1 1 2 -1e300\n", 2, "coordinate within"},
     // auto-detection failure
     {"auto_two_columns", F::kAuto, "# c\n1.0 2.0\n", 2, "a trajectory line"},
     {"auto_words", F::kAuto, "time x y z\n", 1, "a trajectory line"},
@@ -117,6 +124,47 @@ TEST(TrajectoryRead, EveryMalformedInputIsFileErrorWithFileAndLine) {
       EXPECT_NE(e.expected().find(c.expected), std::string::npos) << e.what();
     }
   }
+}
+
+// Files as editors write them: a UTF-8 byte order mark before the first line, and lines ended by
+// "\r\n" (Windows) or a lone "\r" (classic Mac OS) read as the "\n" file does, line numbers
+// included.
+TEST(TrajectoryRead, ByteOrderMarkAndEveryLineEndingReadTheSame) {
+  const auto dir = test::TempDir();
+  const std::string lines[] = {"# t x y z qx qy qz qw", "0 0 0 0 0 0 0 1", "1 1 0 0 0 0 0 1",
+                               "2 2 0 0 0 0 0 1"};
+  for (const std::string bom : {"", "\xEF\xBB\xBF"}) {
+    for (const std::string end : {"\n", "\r\n", "\r"}) {
+      SCOPED_TRACE("bom " + std::to_string(bom.size()) + ", end " + std::to_string(end.size()) +
+                   (end == "\r" ? " CR" : ""));
+      std::string text = bom;
+      for (const auto& l : lines) text += l + end;
+      const auto path = test::WriteText(dir / "t.txt", text);
+      EXPECT_EQ(DetectTrajectoryFormat(path), F::kTum);
+      const Trajectory t = ReadTrajectory(path);
+      ASSERT_EQ(t.size(), 3u);
+      EXPECT_DOUBLE_EQ(t.poses[2].world_from_cam.translation.x(), 2.0);
+      // An error names the line an editor shows: the 4th.
+      test::WriteText(
+          path, bom + lines[0] + end + lines[1] + end + lines[2] + end + "2 2 0 0 0 0 0 1.5" + end);
+      try {
+        ReadTrajectory(path);
+        ADD_FAILURE() << "no FileError";
+      } catch (const FileError& e) {
+        EXPECT_EQ(e.line(), 4) << e.what();
+      }
+    }
+  }
+  // KITTI and EuRoC too (one reader of lines for every format).
+  const auto kitti = test::WriteText(dir / "k.txt",
+                                     "\xEF\xBB\xBF"
+                                     "1 0 0 0 0 1 0 0 0 0 1 0\r"
+                                     "1 0 0 5 0 1 0 0 0 0 1 0\r");
+  EXPECT_EQ(ReadTrajectory(kitti).size(), 2u);
+  const auto euroc = test::WriteText(dir / "e.csv",
+                                     "\xEF\xBB\xBF#t,x\r100,0,0,0,1,0,0,0\r"
+                                     "200,1,0,0,1,0,0,0\r");
+  EXPECT_EQ(ReadTrajectory(euroc).size(), 2u);
 }
 
 TEST(TrajectoryRead, MissingFileAndDirectoryAreFileErrors) {

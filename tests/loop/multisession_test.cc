@@ -9,10 +9,13 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <sstream>
 
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
 
 #include "cameras.h"
+#include "sparseloop/core/logging.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/map/map_database.h"
 #include "sparseloop/pipeline/map_records.h"
@@ -323,8 +326,40 @@ TEST_F(MultiSession, SecondSessionInAnotherSim3FrameFindsCorrectCrossSessionLoop
               cross, session2_->size(), wrong, max_rot);
 }
 
-// Disabling the prior search gives no cross-session loop (the previous test is not vacuous), and
-// the same frames against an unrelated prior session give none either (no false loops).
+// A map stored at one K and searched at a very different one finds (almost) no cross-session loop,
+// which looked like "no revisit": loading such a session warns, naming both K and the -K to use.
+TEST_F(MultiSession, ASessionStoredAtAnotherKIsWarnedAbout) {
+  const auto path = test::TempDir("k_warning") / "map.db";
+  {
+    LoopDetector first(Options());
+    auto map = MapDatabase::Open(path);
+    const int64_t s = map->BeginSession("one");
+    for (size_t i = 0; i < 5; ++i) {
+      first.Process(Input((*session1_)[i], int64_t(i), Sim3d(), true, false));
+      map->PutKeyframe(ToStoredKeyframe(first.record(int64_t(i)), s));
+    }
+  }
+  auto map = MapDatabase::Open(path);
+  std::ostringstream log;
+  auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  Logger().sinks().push_back(sink);
+  LoopDetector same(Options());
+  LoadPriorSessions(*map, 0.0f, &same);
+  const std::string after_same = log.str();
+  LoopDetector::Options small = Options();
+  small.features.max_features = 15;
+  LoopDetector other(small);
+  LoadPriorSessions(*map, 0.0f, &other);
+  Logger().sinks().pop_back();
+  EXPECT_EQ(after_same.find("use -K"), std::string::npos) << after_same;
+  const std::string warning = log.str().substr(after_same.size());
+  EXPECT_NE(warning.find("session 1 was stored with at most"), std::string::npos) << warning;
+  EXPECT_NE(warning.find("this session stores 15"), std::string::npos) << warning;
+  EXPECT_NE(warning.find("use -K"), std::string::npos) << warning;
+}
+
+// Disabling the prior search gives no cross-session loop (SecondSessionInAnotherSim3Frame* is not
+// vacuous), and the same frames against an unrelated prior session give none either.
 TEST_F(MultiSession, NoCrossSessionLoopsWhenDisabledOrUnrelated) {
   auto detector = DetectorWithSession1(false);
   LoopDetector::Options off = Options();

@@ -224,6 +224,34 @@ TEST(MapDatabase, ForeignSqliteFileGivesClearError) {
   }
 }
 
+// Paths that cannot hold a map are refused before SQLite is asked, whose words were "disk I/O
+// error" (/dev/null) or "attempt to write a readonly database" while reading a PRAGMA.
+TEST(MapDatabase, DevicesFoldersAndMissingFoldersAreRefusedBeforeSqlite) {
+  const auto dir = test::TempDir();
+  const auto message = [](const std::filesystem::path& path) {
+    try {
+      MapDatabase::Open(path);
+    } catch (const MapDatabaseError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("/dev/null"),
+            "/dev/null: expected a map database file (a regular file or a new file name), got a "
+            "device, FIFO or socket");
+  EXPECT_NE(message(dir).find("got a directory"), std::string::npos) << message(dir);
+  EXPECT_NE(message(dir / "missing" / "map.db").find("missing"), std::string::npos);
+  if (::geteuid() != 0) {  // root writes anywhere
+    std::filesystem::create_directories(dir / "ro");
+    std::filesystem::permissions(
+        dir / "ro", std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    const std::string ro = message(dir / "ro" / "map.db");
+    std::filesystem::permissions(dir / "ro", std::filesystem::perms::owner_all);
+    EXPECT_NE(ro.find("expected a writable folder"), std::string::npos) << ro;
+  }
+  EXPECT_EQ(message(dir / "map.db"), "no error");
+}
+
 TEST(MapDatabase, GarbageFileGivesClearError) {
   const auto path = test::TempDir() / "garbage.db";
   {

@@ -76,7 +76,7 @@ TEST(Config, UnknownKeyWrongTypeAndBadValueNameTheKey) {
                 .find("paper|radius|global"),
             std::string::npos);
   EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"features": {"max_features": -4}}})"))
-                .find("valid option values"),
+                .find("a valid value for \"detector.features.max_features\""),
             std::string::npos);
   EXPECT_NE(ErrorOf(nlohmann::json::parse(R"({"detector": {"planar_alternative_tolerance": 1.5}})"))
                 .find("planar_alternative_tolerance must be in (0, 1]"),
@@ -85,6 +85,107 @@ TEST(Config, UnknownKeyWrongTypeAndBadValueNameTheKey) {
                 .find("an array of 3 numbers"),
             std::string::npos);
   EXPECT_NE(ErrorOf(nlohmann::json::parse(R"([1, 2])")).find("a JSON object"), std::string::npos);
+}
+
+// A value that fails its check names the key by its whole path: four keys end in
+// rotation_sigma_rad, and the check's own message names the last part only.
+TEST(Config, ABadValueNamesItsWholeKeyPath) {
+  const std::string e = ErrorOf(nlohmann::json::parse(
+      R"({"odometry": {"rotation_sigma_rad": 0.02}, "direction_loop": {"rotation_sigma_rad": 0}})"));
+  EXPECT_NE(e.find("a valid value for \"direction_loop.rotation_sigma_rad\""), std::string::npos)
+      << e;
+  EXPECT_NE(e.find("rotation_sigma_rad must be > 0"), std::string::npos) << e;
+  const std::string o =
+      ErrorOf(nlohmann::json::parse(R"({"odometry": {"rotation_sigma_rad": -1}})"));
+  EXPECT_NE(o.find("\"odometry.rotation_sigma_rad\""), std::string::npos) << o;
+}
+
+// JSON allows a key twice in an object and the parser keeps the last value; a strict reader
+// refuses it, naming the dotted key and the line of the repeat (CR-only line ends counted too).
+TEST(Config, DuplicateKeysAndFoldersAreFileErrors) {
+  const auto dir = test::TempDir();
+  const auto expect = [&](const std::string& text, int line, const std::string& got) {
+    std::ofstream(dir / "c.json", std::ios::binary) << text;
+    try {
+      PipelineOptions o;
+      LoadConfigFile(dir / "c.json", &o);
+      ADD_FAILURE() << "no FileError for " << text;
+    } catch (const FileError& e) {
+      EXPECT_EQ(e.line(), line) << e.what();
+      EXPECT_NE(e.got().find(got), std::string::npos) << e.what();
+    }
+  };
+  expect("{\"detector\": {\"check_every\": 1,\n \"check_every\": 2}}", 2,
+         "\"detector.check_every\" a second time");
+  expect("{\"optimizer\": {},\r\"detector\": {},\r\"optimizer\": {}}", 3,
+         "\"optimizer\" a second time");
+  expect(
+      "{\"detector\": {\"features\": {\"max_features\": 15}},\n"
+      " \"detector\": {\"features\": {\"max_features\": 20}}}",
+      2, "\"detector\" a second time");
+  // Same key names in different objects are fine.
+  std::ofstream(dir / "ok.json") << R"({"odometry": {"rotation_sigma_rad": 0.02},
+      "direction_loop": {"rotation_sigma_rad": 0.1}})";
+  PipelineOptions o;
+  EXPECT_NO_THROW(LoadConfigFile(dir / "ok.json", &o));
+  EXPECT_DOUBLE_EQ(o.direction_loop.rotation_sigma_rad, 0.1);
+  try {
+    LoadConfigFile(dir, &o);
+    ADD_FAILURE() << "a folder read as a config";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.got(), "a directory") << e.what();
+  }
+}
+
+// The bounds `config --dump` states for a key are the bounds its Check() applies: a value on a
+// stated bound is accepted and one just outside refused ("(>= 1)" for a key checked in [5, 10000]
+// told users K = 1 was fine).
+TEST(Config, DocumentedBoundsAreTheCheckedBounds) {
+  const std::regex range(R"(([\[(])(-?[0-9.e+-]+), (-?[0-9.e+-]+)([\])]))");
+  const std::regex at_least(R"((>=|>) (-?[0-9.e+-]+)\))");
+  const auto accepted = [](const ConfigKey& key, double value) {
+    // The keys a bound of another key depends on, at their widest: K <= orb_candidates,
+    // ann.neighbors <= ann.ef_search.
+    PipelineOptions o;
+    o.detector.features.orb_candidates = 10000;
+    o.detector.ann.ef_search = 4096;
+    try {
+      key.set(key.type == "integer" ? nlohmann::json(static_cast<int64_t>(value))
+                                    : nlohmann::json(value),
+              &o);
+      o.Check();
+    } catch (const std::exception&) {
+      return false;
+    } catch (const ConfigValueError&) {
+      return false;
+    }
+    return true;
+  };
+  int checked = 0;
+  for (const ConfigKey& key : ConfigKeys()) {
+    if (key.type != "integer" && key.type != "number") continue;
+    SCOPED_TRACE(key.path + ": " + key.help);
+    const double step = key.type == "integer" ? 1.0 : 1e-9;
+    std::smatch m;
+    if (std::regex_search(key.help, m, range)) {
+      const double lo = std::stod(m[2]), hi = std::stod(m[3]);
+      const bool lo_in = m[1] == "[", hi_in = m[4] == "]";
+      const double lo_step = step * std::max(1.0, std::abs(lo));
+      const double hi_step = step * std::max(1.0, std::abs(hi));
+      EXPECT_EQ(accepted(key, lo), lo_in) << lo;
+      EXPECT_FALSE(accepted(key, lo - lo_step)) << lo - lo_step;
+      EXPECT_EQ(accepted(key, hi), hi_in) << hi;
+      EXPECT_FALSE(accepted(key, hi + hi_step)) << hi + hi_step;
+      ++checked;
+    } else if (std::regex_search(key.help, m, at_least)) {
+      const double lo = std::stod(m[2]);
+      const double lo_step = step * std::max(1.0, std::abs(lo));
+      EXPECT_EQ(accepted(key, lo), m[1] == ">=") << lo;
+      EXPECT_FALSE(accepted(key, lo - lo_step)) << lo - lo_step;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 20);
 }
 
 TEST(Config, SyntaxErrorNamesTheLine) {

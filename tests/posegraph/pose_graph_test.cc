@@ -642,6 +642,8 @@ TEST(G2o, MalformedFilesThrowFileErrorWithLine) {
       {"VERTEX_SE2 0 0 0 x\n", 1},
       {"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n", 2},
       {"VERTEX_SE2 0 0 0 0 7\n", 1},
+      // A BOM, "\r\n" and lone "\r" line ends: the line an editor shows.
+      {"\xEF\xBB\xBFVERTEX_SE2 0 0 0 0\r\nVERTEX_SE2 1 1 0 0\rFOO 1 2\r", 3},
   };
   for (const auto& [text, line] : cases) {
     std::istringstream in(text);

@@ -17,6 +17,7 @@
 #include "sparseloop/io/dataset.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/loop/loop_detector.h"
+#include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/pipeline/pipeline.h"
 #include "sparseloop/posegraph/g2o.h"
 #include "test_util.h"
@@ -233,6 +234,38 @@ TEST_F(BadSequence, CorruptAndMissingImagesAreSkippedAndCounted) {
     FAIL() << "no throw";
   } catch (const FileError& e) {
     EXPECT_NE(std::string(e.what()).find("000002.png"), std::string::npos) << e.what();
+  }
+}
+
+// An image that cannot be opened is never handed to OpenCV (which printed its own "[ WARN:0@...]"
+// line) and the error says why ("Permission denied" for a user; here the file went away after the
+// dataset was opened); a file that opens but does not decode says so.
+TEST_F(BadSequence, UnreadableImageSaysWhy) {
+  std::ofstream(dir_ / "image_0" / "000002.png") << "not a png at all";
+  const Dataset d = OpenDataset("kitti:" + dir_.string());
+  std::filesystem::remove(dir_ / "image_0" / "000003.png");
+  EXPECT_EQ(ImageReadProblem(dir_ / "image_0" / "000002.png"), "not a decodable image");
+  EXPECT_EQ(ImageReadProblem(dir_ / "image_0" / "000003.png"), "No such file or directory");
+  EXPECT_TRUE(ReadFrameGray(d, d.frames[3]).empty());
+  const Trajectory raw =
+      MatchRawPosesToFrames(d, ReadTrajectory(dir_ / "raw.txt"), 0.02, dir_ / "raw.txt");
+  PipelineOptions options;
+  options.skip_unreadable_frames = false;
+  try {
+    RunPipeline(d, raw, options);
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.expected(), "a readable image") << e.what();
+    EXPECT_EQ(e.got(), "not a decodable image") << e.what();
+  }
+  std::filesystem::copy(dir_ / "image_0" / "000001.png", dir_ / "image_0" / "000002.png",
+                        std::filesystem::copy_options::overwrite_existing);
+  try {
+    RunPipeline(d, raw, options);
+    FAIL() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_NE(e.file().find("000003.png"), std::string::npos) << e.what();
+    EXPECT_EQ(e.got(), "No such file or directory") << e.what();
   }
 }
 

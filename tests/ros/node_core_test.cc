@@ -5,6 +5,8 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -175,6 +177,18 @@ TEST(NodeCore, BadPosesAndCameraInfoAreIgnoredWithAWarning) {
   EXPECT_EQ(core.Stats().dropped_bad, 2);
 }
 
+// camera_info with fx = 1e308 was accepted, then every image was dropped with a packing error and
+// the finish reported success: the message is refused with the reason, like a negative fx.
+TEST(NodeCore, CameraInfoWithAnAbsurdFocalLengthIsRefusedWithTheReason) {
+  Warnings warnings;
+  NodeCore core(NodeParams{}, warnings.Callbacks());
+  CameraInfoMessage info = Info();
+  info.k[0] = 1e308;
+  core.AddCameraInfo(info);
+  EXPECT_TRUE(warnings.Any("fx must be at most"));
+  EXPECT_EQ(core.Stats().dropped_bad, 1);
+}
+
 std::array<double, 36> Diagonal(const std::array<double, 6>& d) {
   std::array<double, 36> c{};
   for (int i = 0; i < 6; ++i) c[i * 6 + i] = d[i];
@@ -259,6 +273,25 @@ TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
   p = NodeParams{};
   p.config_file = "/nonexistent/config.json";
   EXPECT_NE(message(p).find("/nonexistent/config.json"), std::string::npos) << message(p);
+  // Output files are checked at start, not at finish (a missing folder lost the session's
+  // trajectory), and never one of the inputs or each other.
+  p = NodeParams{};
+  p.trajectory_file = "/nonexistent_dir/trajectory.txt";
+  EXPECT_NE(message(p).find("~trajectory_file /nonexistent_dir/trajectory.txt"), std::string::npos)
+      << message(p);
+  const auto dir = std::filesystem::temp_directory_path() / "sparseloop_node_core_params";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "config.json") << "{}\n";
+  p = NodeParams{};
+  p.config_file = (dir / "config.json").string();
+  p.loops_file = (dir / "sub" / ".." / "config.json").string();
+  EXPECT_NE(message(p).find("got the file of ~config_file"), std::string::npos) << message(p);
+  p = NodeParams{};
+  p.trajectory_file = (dir / "out.txt").string();
+  p.loops_file = (dir / "out.txt").string();
+  EXPECT_NE(message(p).find("~loops_file"), std::string::npos) << message(p);
+  p.loops_file = (dir / "loops.csv").string();
+  EXPECT_EQ(message(p), "no error");
 }
 
 }  // namespace

@@ -452,6 +452,11 @@ def test_node_survives_lost_tracking_and_out_of_order_stamps(ros, sequence):
     ({"pose_type": "imu"}, "must be pose, pose_cov, odometry or tf, got 'imu'"),
     ({"config": {"detector": {"nope": 1}}}, "detector.nope"),
     ({"max_pose_dt": -1.0}, "~max_pose_dt must be > 0 s"),
+    ({"diagnostics_period": -5.0}, "/sparseloop/diagnostics_period must be in [0, 3600] s"),
+    ({"image_queue": 3000000000.0},
+     "/sparseloop/image_queue must be an integer in [1, 100000], got 3000000000"),
+    ({"trajectory_file": "/nonexistent_folder/t.txt"},
+     "~trajectory_file /nonexistent_folder/t.txt: expected an existing, writable output directory"),
 ])
 def test_node_rejects_bad_parameters(ros, params, message):
     import rospy
@@ -464,6 +469,16 @@ def test_node_rejects_bad_parameters(ros, params, message):
     log = pathlib.Path(proc.log_path).read_text()
     assert message in log, log[-2000:]
     rospy.delete_param("/sparseloop")
+
+
+def test_help_and_bad_diagnostics_period():
+    """`sparseloop_node --help` prints its usage and exits without a ROS master (it waited for one
+    forever). The bad ~diagnostics_period is in test_node_rejects_bad_parameters."""
+    r = subprocess.run([require("SPARSELOOP_NODE"), "--help"], capture_output=True, text=True,
+                       timeout=30, env={k: v for k, v in os.environ.items()
+                                        if k != "ROS_MASTER_URI"})
+    assert r.returncode == 0, r.stderr
+    assert "Usage: sparseloop_node" in r.stdout and "trajectory_file" in r.stdout, r.stdout
 
 
 def test_launch_file_finds_the_node(ros):

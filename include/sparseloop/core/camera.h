@@ -24,8 +24,8 @@ struct CameraIntrinsics {
   std::vector<double> distortion;  // coefficients in the model's order
 
   Eigen::Matrix3d K() const;
-  // Throws std::invalid_argument naming the first bad field (non-positive or non-finite focal
-  // length, principal point outside the image, wrong number of distortion coefficients).
+  // Throws std::invalid_argument naming the first bad field (focal length not in (0, 1e7] px,
+  // principal point outside the image or beyond 1e7 px, wrong number of distortion coefficients).
   void Check() const;
   // Pixel -> normalised image coordinates, ignoring distortion.
   Eigen::Vector2d Unproject(const Eigen::Vector2d& pixel) const;

@@ -11,15 +11,15 @@ namespace sparseloop {
 // Checks, without writing anything, that WriteFileAtomically(path, ...) can write `path`, and
 // returns the file it will replace: `path` itself, or, when `path` is a symbolic link (a chain of
 // links is followed), the link's final target (the link itself is never replaced). Throws
-// FileError(path, 0, ...) when the path (or the target) is a directory, FIFO, socket, character or
-// block device, when it is a link to an open file descriptor (/dev/stdout, /dev/fd/N,
-// /proc/self/fd/N), when its directory is missing or not writable, or when the links form a loop.
+// FileError(path, 0, ...) when the path (or the target) is a directory, FIFO, socket or device, a
+// link to an open file descriptor (/dev/stdout, /dev/fd/N, /proc/self/fd/N), in a missing or
+// unwritable directory, a loop of links, or longer than NAME_MAX / PATH_MAX (with ".tmp.<pid>").
 std::filesystem::path CheckOutputFile(const std::filesystem::path& path);
 
 // Checks, without creating anything, that `dir` can hold output files: an existing writable
-// directory, or a new path whose nearest existing parent is a writable directory. When `dir`
-// exists, each of `file_names` inside it is checked with CheckOutputFile. FileError naming the
-// directory or the file otherwise.
+// directory, or a new path whose nearest existing parent is a writable directory, as ResolvedPath
+// gives it (output_paths.h). Each of `file_names` must fit NAME_MAX / PATH_MAX inside it and, when
+// `dir` exists, pass CheckOutputFile. FileError naming the directory or the file otherwise.
 void CheckOutputDirectory(const std::filesystem::path& dir,
                           const std::vector<std::string>& file_names = {});
 
