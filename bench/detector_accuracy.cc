@@ -37,6 +37,7 @@
 
 #include "castle_input.h"
 #include "euroc_pairs.h"
+#include "program_main.h"
 #include "real_data.h"
 #include "sparseloop/loop/loop_detector.h"
 #include "sparseloop/matching/descriptor_matching.h"
@@ -428,10 +429,6 @@ int Main(int argc, char** argv) {
 }  // namespace sparseloop
 
 int main(int argc, char** argv) {
-  try {
-    return sparseloop::Main(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "detector_accuracy: %s\n", e.what());
-    return 1;
-  }
+  return sparseloop::test::RunProgram("detector_accuracy", 1,
+                                      [&] { return sparseloop::Main(argc, argv); });
 }

@@ -35,6 +35,7 @@
 
 #include "data_dir.h"
 #include "loop_harness.h"
+#include "program_main.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/posegraph/g2o.h"
@@ -299,10 +300,6 @@ int Main(int argc, char** argv) {
 }  // namespace sparseloop
 
 int main(int argc, char** argv) {
-  try {
-    return sparseloop::Main(argc, argv);
-  } catch (const std::exception& e) {
-    std::cerr << "posegraph_accuracy: " << e.what() << "\n";
-    return 2;
-  }
+  return sparseloop::test::RunProgram("posegraph_accuracy", 2,
+                                      [&] { return sparseloop::Main(argc, argv); });
 }

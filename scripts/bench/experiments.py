@@ -1,4 +1,5 @@
 """Every experiment of docs/BENCHMARKS.md run (or reused) and its numbers collected."""
+import concurrent.futures as cf
 import json
 import time
 
@@ -12,15 +13,18 @@ from .scoring import *  # noqa: F401,F403
 
 
 def family_renders(r, seqs, family_plan, threads):
-    """Render tasks of the drift family (the x1 render is the sequence's own) and its
-    (sequence, drift, render name) list."""
+    """Render tasks of the drift family (the x1 heading render is the sequence's own) and its
+    (label, drift, render name) list; the label of a pitch / roll row is "SEQ pitch" / "SEQ roll"."""
     tasks, family = [], []
-    for seq, scales in family_plan:
+    for seq, scales, axis in family_plan:
         for d in scales:
-            name = seq if d == 1.0 else f"{seq}_df{d:g}"  # the base render has drift 1
-            family.append((seq, d, name))
+            label, name = (seq, seq) if axis is None else (f"{seq} {axis}", f"{seq}_{axis}")
+            extra = [] if axis is None else ["--rotation-bias", ROTATION_BIAS_AXES[axis]]
             if d != 1.0:
-                tasks += render_tasks(r, {name: (seqs[seq][0], seqs[seq][1] +
+                name += f"_df{d:g}"
+            family.append((label, d, name))
+            if name != seq:  # the base render has drift 1 and the heading bias
+                tasks += render_tasks(r, {name: (seqs[seq][0], seqs[seq][1] + extra +
                                                  ["--drift", str(d)])}, threads)
     return tasks, family
 
@@ -28,13 +32,16 @@ def family_renders(r, seqs, family_plan, threads):
 def family_runs(r, family, runs, sparse=False):
     """Run tasks of the drift family: today's options, the loop options before session 8 and the
     search area before session 19, side by side (and with `sparse` the K = 15 preset,
-    bench/configs/sparse_k15.json); their run folders go into `runs`."""
+    bench/configs/sparse_k15.json); their run folders go into `runs`. The pitch / roll rows run
+    today's options (and the preset) only."""
     tasks = []
     variants = [("new", {}), ("old", OLD_LOOP_DEFAULTS), ("oldarea", OLD_AREA_DEFAULTS)]
     if sparse:
         variants.append(("sparse", {"detector": sparse_variants()["sparse_preset"][1]}))
-    for _, _, name in family:
+    for label, _, name in family:
         for variant, cfg in variants:
+            if " " in label and variant in ("old", "oldarea"):
+                continue
             task, rd = run_task(r, name, f"family_{variant}", cfg)
             tasks.append(task)
             runs[(name, f"family_{variant}")] = rd
@@ -50,11 +57,12 @@ def collect_metrics(r, runs):
 
 
 def run_family(r):
-    """The drift family alone at its full size (issues #17 / #18): the street worlds along KITTI
-    00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, four option sets each."""
+    """The drift family alone at its full size (issues #17 / #18 / #43): the street worlds along
+    KITTI 00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, four option sets each;
+    each of them with the bias about pitch and about roll at x1 / x4, two option sets each."""
     full = plan(quick=False)
     family_plan = drift_family(quick=False)
-    seqs = {seq: full[seq] for seq, _ in family_plan}
+    seqs = {seq: full[seq] for seq, _, _ in family_plan}
     threads = "1" if r.jobs > 1 else "2"
     t0 = time.time()
     renders, family = family_renders(r, seqs, family_plan, threads)
@@ -64,10 +72,23 @@ def run_family(r):
     t1 = time.time()
     r.parallel(family_runs(r, family, runs, sparse=True))
     runs_s = time.time() - t1
+    t2 = time.time()
+    castle = castle_family(r)
     return {"sequences": {n: {"world": w, "render_args": a} for n, (w, a) in seqs.items()},
             "metrics": collect_metrics(r, runs), "drift_family": family,
+            "castle_family": castle,
             "timings": {"render_s": render_s, "accuracy_runs_s": runs_s,
-                        "total_s": time.time() - t0}}
+                        "castle_s": time.time() - t2, "total_s": time.time() - t0}}
+
+
+def castle_family(r):
+    """The castle ring under pitch / yaw / roll bias (issue #43, bench/castle_drift), each option
+    set of CASTLE_DRIFT_VARIANTS; variant -> castle_drift's JSON (or {"missing": why})."""
+    args = ["--data", DATA] + (["--seeds", "11", "--biases", "1"] if r.smoke_frames else [])
+    with cf.ThreadPoolExecutor(max_workers=r.jobs) as pool:
+        futures = {v: pool.submit(json_exe, r, "castle_drift", args + extra, f"castle_drift_{v}")
+                   for v, _, extra in CASTLE_DRIFT_VARIANTS}
+        return {v: f.result() for v, f in futures.items()}
 
 
 def run_all(r, quick):

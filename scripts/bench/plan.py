@@ -56,12 +56,29 @@ OLD_AREA_DEFAULTS = {"detector": {"search": {"drift_rate": 0.0}, "max_loop_dista
                                   "appearance_fallback": False}}
 
 
+# Rotation drift about the other camera axes (issue #43): the default bias of 0.6 deg per 100 m
+# about camera x (pitch) or z (roll) instead of y (heading), `render --rotation-bias P,Y,R`.
+ROTATION_BIAS_AXES = {"pitch": "0.6,0,0", "roll": "0,0,0.6"}
+
+
+# Issue #43: the castle ring (30 real images, exact poses, no depths) under a rotation bias per
+# keyframe about each camera axis, alone and with scale drift, 3 seeds (bench/castle_drift's
+# default grid: 0.2 / 0.5 / 1 deg x scale 1 / 0.99 / 1.01 x seeds 11-13), with today's options
+# (K = 300) and the K = 15 preset. (variant, label, castle_drift arguments).
+CASTLE_DRIFT_VARIANTS = [
+    ("default", "today (K = 300)", []),
+    ("sparse", "K = 15 preset", ["--config", ROOT / "bench" / "configs" / "sparse_k15.json"]),
+]
+
+
 def drift_family(quick):
-    """(sequence, drift scales) of the loop-correction family."""
+    """(sequence, drift scales, bias axis) of the loop-correction family; bias axis None is the
+    default heading bias, "pitch" / "roll" a ROTATION_BIAS_AXES row (full family only)."""
     if quick:
-        return [("aerial_circuit", [1.0, 4.0]), ("street07", [1.0, 4.0])]
-    return [("aerial_circuit", [1.0, 4.0])] + [(s, [1.0, 2.0, 4.0])
-                                              for s in ("street00", "street05", "street06")]
+        return [("aerial_circuit", [1.0, 4.0], None), ("street07", [1.0, 4.0], None)]
+    seqs = ["aerial_circuit", "street00", "street05", "street06"]
+    heading = [(s, [1.0, 4.0] if s.startswith("aerial") else [1.0, 2.0, 4.0], None) for s in seqs]
+    return heading + [(s, [1.0, 4.0], axis) for axis in ROTATION_BIAS_AXES for s in seqs]
 
 
 def k_sweep(quick):

@@ -58,10 +58,12 @@ def finish_row(fig, axes, ylabel, path, legend_size):
 
 
 def plot_family(res, path):
-    """Per drift-family sequence: raw ATE and corrected ATE of each option set against drift."""
+    """Per drift-family sequence: raw ATE and corrected ATE of each option set against drift
+    (the heading rows; the pitch / roll rows are in the table only)."""
     by_seq = {}
     for seq, d, name in res.get("drift_family", []):
-        by_seq.setdefault(seq, []).append((d, res["metrics"].get(name, {})))
+        if " " not in seq:
+            by_seq.setdefault(seq, []).append((d, res["metrics"].get(name, {})))
     if not by_seq:
         return
     fig, axes = plt.subplots(1, len(by_seq), figsize=(3.4 * len(by_seq), 3.3), squeeze=False)

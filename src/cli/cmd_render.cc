@@ -1,6 +1,8 @@
 // sparseloop render: synthetic sequence (images + GT + drifting raw trajectory) in KITTI layout.
 #include <unistd.h>
 
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -8,6 +10,7 @@
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_util.h"
@@ -17,6 +20,7 @@
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/kitti_sequence.h"
 #include "sparseloop/synthetic/texture.h"
+#include "sparseloop/synthetic/vslam_sim.h"
 #include "sparseloop/synthetic/worlds.h"
 
 namespace sparseloop::cli {
@@ -42,7 +46,27 @@ struct RenderFlags {
   SequenceOptions seq;
   bool no_photometric = false, no_mapped = false, poses_only = false;
   double drift_scale = 1.0, photometric_scale = 1.0;
+  // PITCH,YAW,ROLL in degrees (camera x, y, z); empty: the DriftOptions default.
+  std::string rotation_bias, rotation_bias_per_frame;
 };
+
+// "PITCH,YAW,ROLL": three finite numbers, degrees about camera x, y, z. Anything else is an
+// std::invalid_argument (exit 2) naming `flag`.
+Eigen::Vector3d ParseAxesFlag(const std::string& flag, const std::string& text) {
+  const std::vector<std::string> items = SplitComma(text);
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  bool ok = items.size() == 3 && std::count(text.begin(), text.end(), ',') == 2;
+  for (size_t i = 0; ok && i < 3; ++i) {
+    const char* end = items[i].data() + items[i].size();
+    const auto [ptr, ec] = std::from_chars(items[i].data(), end, v[i]);
+    ok = ec == std::errc() && ptr == end && std::isfinite(v[i]);
+  }
+  SL_CHECK_MSG(ok,
+               "{} expects PITCH,YAW,ROLL (3 finite numbers, degrees about camera x, y, z), "
+               "got '{}'",
+               flag, text);
+  return v;
+}
 
 void AddRenderFlags(CLI::App& app, RenderFlags* f) {
   app.add_option("--world", f->world_name, "aerial or street")
@@ -92,8 +116,21 @@ void AddRenderFlags(CLI::App& app, RenderFlags* f) {
   app.add_flag("--depth", f->seq.write_depth, "also write depth_0/NNNNNN.png (metres * 256)");
   app.add_flag("--no-mapped", f->no_mapped, "do not write mapped/NNNNNN.txt");
   app.add_option("--drift", f->drift_scale,
-                 "multiplies every simulated drift rate (rotation, translation, scale); 0: none")
+                 "multiplies every simulated drift rate per metre (rotation noise and "
+                 "--rotation-bias, translation, scale; not --rotation-bias-per-frame); 0: none")
       ->capture_default_str();
+  const syn::DriftOptions drift;
+  app.add_option(
+      "--rotation-bias", f->rotation_bias,
+      fmt::format("PITCH,YAW,ROLL: rotation bias of the raw trajectory in degrees per "
+                  "100 m about camera x (pitch), y (yaw, heading), z (roll; optical "
+                  "axis), times --drift [default: {:g},{:g},{:g}]",
+                  drift.rotation_bias_deg_per_100m.x(), drift.rotation_bias_deg_per_100m.y(),
+                  drift.rotation_bias_deg_per_100m.z()));
+  app.add_option("--rotation-bias-per-frame", f->rotation_bias_per_frame,
+                 "PITCH,YAW,ROLL: extra rotation bias in degrees per frame (each raw step is "
+                 "rotated by exactly this about camera x, y, z), not scaled by --drift "
+                 "[default: 0,0,0]");
   app.add_option("--photometric", f->photometric_scale,
                  "multiplies the exposure/gamma change amplitudes")
       ->capture_default_str();
@@ -117,6 +154,16 @@ void ApplyRenderFlags(RenderFlags* f) {
                "--drift must be >= 0, got {}", f->drift_scale);
   SL_CHECK_MSG(f->photometric_scale >= 0.0 && std::isfinite(f->photometric_scale),
                "--photometric must be >= 0, got {}", f->photometric_scale);
+  SL_CHECK_MSG(
+      f->raw_path.empty() || (f->rotation_bias.empty() && f->rotation_bias_per_frame.empty()),
+      "--rotation-bias and --rotation-bias-per-frame simulate drift; they cannot be "
+      "combined with --raw");
+  if (!f->rotation_bias.empty())
+    seq.drift.rotation_bias_deg_per_100m = ParseAxesFlag("--rotation-bias", f->rotation_bias);
+  if (!f->rotation_bias_per_frame.empty()) {
+    seq.drift.rotation_bias_deg_per_frame =
+        ParseAxesFlag("--rotation-bias-per-frame", f->rotation_bias_per_frame);
+  }
   seq.drift.rotation_noise_deg_per_sqrt_m *= f->drift_scale;
   seq.drift.rotation_bias_deg_per_100m *= f->drift_scale;
   seq.drift.translation_noise *= f->drift_scale;
@@ -133,7 +180,9 @@ void ApplyRenderFlags(RenderFlags* f) {
                     {"noise_sigma", "--noise"},
                     {"blur_sigma", "--blur"},
                     {"gain_amplitude", "--photometric"},
-                    {"gamma_amplitude", "--photometric"}},
+                    {"gamma_amplitude", "--photometric"},
+                    {"rotation_bias", "--rotation-bias"},
+                    {"rotation_bias_per_frame", "--rotation-bias-per-frame"}},
                    [&] {
                      f->plan.Check();
                      seq.Check();
@@ -205,7 +254,11 @@ Trajectory SliceTrajectory(const RenderFlags& f, const Trajectory& gt) {
 
 // render.json: what was rendered, so a --start / --step slice is known from the folder itself
 // (frame k of the folder is pose start + k * step of the trajectory).
+// The biases are those simulated (--rotation-bias times --drift), null with --raw.
 void WriteRenderJson(const RenderFlags& f, size_t frames) {
+  const auto axes = [&](const Eigen::Vector3d& v) {
+    return f.raw_path.empty() ? nlohmann::json{v.x(), v.y(), v.z()} : nlohmann::json(nullptr);
+  };
   nlohmann::json j = {
       {"command", "render"},
       {"world", f.world_name},
@@ -219,6 +272,8 @@ void WriteRenderJson(const RenderFlags& f, size_t frames) {
       {"seed", f.seed},
       {"raw", f.raw_path.empty() ? nlohmann::json(nullptr) : nlohmann::json(f.raw_path)},
       {"drift", f.drift_scale},
+      {"rotation_bias_deg_per_100m", axes(f.seq.drift.rotation_bias_deg_per_100m)},
+      {"rotation_bias_deg_per_frame", axes(f.seq.drift.rotation_bias_deg_per_frame)},
       {"photometric", f.photometric_scale},
       {"poses_only", f.poses_only}};
   WriteFileAtomically(std::filesystem::path(f.out_dir) / "render.json",

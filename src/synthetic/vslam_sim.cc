@@ -10,6 +10,12 @@ namespace sparseloop::synthetic {
 void DriftOptions::Check() const {
   SL_CHECK_MSG(rotation_noise_deg_per_sqrt_m >= 0.0, "rotation_noise must be >= 0");
   SL_CHECK_MSG(rotation_bias_deg_per_100m.allFinite(), "rotation_bias must be finite");
+  SL_CHECK_MSG(
+      rotation_bias_deg_per_frame.allFinite() && rotation_bias_deg_per_frame.norm() < 180.0,
+      "rotation_bias_per_frame must be finite, its angle (the norm) below 180 deg, got "
+      "({}, {}, {})",
+      rotation_bias_deg_per_frame.x(), rotation_bias_deg_per_frame.y(),
+      rotation_bias_deg_per_frame.z());
   SL_CHECK_MSG(translation_noise >= 0.0 && translation_noise < 1.0,
                "translation_noise must be in [0, 1), got {}", translation_noise);
   SL_CHECK_MSG(scale_noise_per_sqrt_m >= 0.0, "scale_noise must be >= 0");
@@ -26,6 +32,9 @@ DriftResult SimulateDrift(const Trajectory& gt, const DriftOptions& o) {
   result.scale.assign(gt.size(), o.initial_scale);
   const double deg = M_PI / 180.0;
   double log_s = std::log(o.initial_scale);
+  // No bias per frame: no extra factor, the chain of today bit for bit.
+  const bool has_frame_bias = !o.rotation_bias_deg_per_frame.isZero(0.0);
+  const Eigen::Quaterniond frame_bias = ExpSO3(o.rotation_bias_deg_per_frame * deg);
   Rigid3d raw(gt.poses[0].world_from_cam.rotation,
               o.initial_scale * gt.poses[0].world_from_cam.translation);
   result.raw.poses[0].world_from_cam = raw;
@@ -39,7 +48,8 @@ DriftResult SimulateDrift(const Trajectory& gt, const DriftOptions& o) {
         deg;
     Eigen::Vector3d tn(rng.Normal(), rng.Normal(), rng.Normal());
     const Eigen::Vector3d t = rel.translation + o.translation_noise * d * tn;
-    const Eigen::Quaterniond q = rel.rotation * ExpSO3(omega);
+    Eigen::Quaterniond q = rel.rotation * ExpSO3(omega);
+    if (has_frame_bias) q = q * frame_bias;
     const double s = std::exp(log_s);
     raw = raw * Rigid3d(q, s * t);
     log_s += o.scale_bias_per_100m * d / 100.0 + o.scale_noise_per_sqrt_m * sd * rng.Normal();

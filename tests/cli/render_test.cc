@@ -162,6 +162,127 @@ TEST(RenderCli, StartSliceIsRecordedInRenderJson) {
   }
 }
 
+// Per raw step: the GT step's length and the raw step's rotation error as a rotation vector
+// (rad), gt_rel^-1 raw_rel, from a render folder's poses_gt.txt and poses_raw.txt.
+struct StepErrors {
+  std::vector<double> length;
+  std::vector<Eigen::Vector3d> rotation;
+  std::vector<Eigen::Vector3d> raw_translation;
+};
+StepErrors ReadStepErrors(const fs::path& dir) {
+  const Trajectory gt = ReadTrajectory(dir / "poses_gt.txt");
+  const Trajectory raw = ReadTrajectory(dir / "poses_raw.txt");
+  EXPECT_EQ(gt.size(), raw.size());
+  StepErrors e;
+  for (size_t i = 0; i + 1 < std::min(gt.size(), raw.size()); ++i) {
+    const Rigid3d g = gt.poses[i].world_from_cam.Inverse() * gt.poses[i + 1].world_from_cam;
+    const Rigid3d r = raw.poses[i].world_from_cam.Inverse() * raw.poses[i + 1].world_from_cam;
+    e.length.push_back(g.translation.norm());
+    e.rotation.push_back(LogSO3(g.rotation.conjugate() * r.rotation));
+    e.raw_translation.push_back(r.translation);
+  }
+  return e;
+}
+
+// --rotation-bias-per-frame P,Y,R: without the per-metre drift (--drift 0) every raw step is the
+// GT step turned by exactly the bias about the camera axis it names (x pitch, y yaw, z roll).
+TEST(RenderCli, RotationBiasPerFrameTurnsEveryRawStepAboutItsAxis) {
+  const char* biases[] = {"0.5,0,0", "0,0.5,0", "0,0,0.5"};
+  for (int axis = 0; axis < 3; ++axis) {
+    SCOPED_TRACE(biases[axis]);
+    const auto out = OutDir(fmt::format("axis{}", axis));
+    const CliResult r =
+        RunCli({"render", "--world", "aerial", "--frames", "12", "--seed", "4", "--poses-only",
+                "--drift", "0", "--rotation-bias-per-frame", biases[axis], "--out", out.string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const StepErrors e = ReadStepErrors(out);
+    ASSERT_EQ(e.rotation.size(), 11u);
+    const Eigen::Vector3d expected = 0.5 * M_PI / 180.0 * Eigen::Vector3d::Unit(axis);
+    for (size_t i = 0; i < e.rotation.size(); ++i)
+      EXPECT_LT((e.rotation[i] - expected).norm(), 1e-12) << "step " << i;
+    std::ifstream in(out / "render.json");
+    const auto j = nlohmann::json::parse(in);
+    EXPECT_EQ(j["rotation_bias_deg_per_frame"][axis].get<double>(), 0.5);
+    EXPECT_EQ(j["rotation_bias_deg_per_100m"], nlohmann::json({0.0, 0.0, 0.0}));  // times --drift 0
+  }
+}
+
+// --rotation-bias P,Y,R replaces the default heading bias (0,0.6,0 deg per 100 m) and is scaled
+// by --drift like it: with the same seed (same noise), each step's rotation error changes by
+// exactly (new - default) * drift * step length / 100 m, and nothing else changes.
+TEST(RenderCli, RotationBiasPer100mReplacesTheHeadingBias) {
+  const auto plain = OutDir("plain");
+  const auto biased = OutDir("biased");
+  for (const auto& out : {plain, biased}) {
+    std::vector<std::string> args = {"render",  "--world", "aerial", "--frames",
+                                     "30",      "--seed",  "6",      "--poses-only",
+                                     "--drift", "3",       "--out",  out.string()};
+    if (out == biased) args.insert(args.end(), {"--rotation-bias", "2,0,-1.5"});
+    const CliResult r = RunCli(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const StepErrors a = ReadStepErrors(plain), b = ReadStepErrors(biased);
+  ASSERT_EQ(a.rotation.size(), 29u);
+  ASSERT_EQ(b.rotation.size(), 29u);
+  const Eigen::Vector3d change_deg =
+      3.0 * (Eigen::Vector3d(2, 0, -1.5) - Eigen::Vector3d(0, 0.6, 0));
+  for (size_t i = 0; i < a.rotation.size(); ++i) {
+    const Eigen::Vector3d expected = change_deg * a.length[i] / 100.0 * M_PI / 180.0;
+    EXPECT_GT(expected.norm(), 1e-5);
+    EXPECT_LT((b.rotation[i] - a.rotation[i] - expected).norm(), 1e-10) << "step " << i;
+    EXPECT_LT((b.raw_translation[i] - a.raw_translation[i]).norm(), 1e-9) << "step " << i;
+  }
+  std::ifstream in(biased / "render.json");
+  EXPECT_EQ(nlohmann::json::parse(in)["rotation_bias_deg_per_100m"],
+            nlohmann::json({6.0, 0.0, -4.5}));
+}
+
+// No bias per frame and the default heading bias spelled out: the raw poses of today, byte for
+// byte (the heading drift of every existing render is unchanged).
+TEST(RenderCli, ExplicitDefaultBiasesReproduceTheRawPosesExactly) {
+  const auto plain = OutDir("default_bias");
+  const auto spelled = OutDir("spelled_bias");
+  for (const auto& out : {plain, spelled}) {
+    std::vector<std::string> args = {"render", "--world", "aerial",     "--frames",
+                                     "40",     "--seed",  "3",          "--drift",
+                                     "2",      "--out",   out.string(), "--poses-only"};
+    if (out == spelled)
+      args.insert(args.end(), {"--rotation-bias", "0,0.6,0", "--rotation-bias-per-frame", "0,0,0"});
+    const CliResult r = RunCli(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const std::string raw = ReadText(plain / "poses_raw.txt");
+  EXPECT_FALSE(raw.empty());
+  EXPECT_EQ(raw, ReadText(spelled / "poses_raw.txt"));
+  EXPECT_EQ(ReadText(plain / "raw_scale.txt"), ReadText(spelled / "raw_scale.txt"));
+  std::ifstream in(plain / "render.json");
+  const auto j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["rotation_bias_deg_per_100m"], nlohmann::json({0.0, 1.2, 0.0}));  // times --drift
+  EXPECT_EQ(j["rotation_bias_deg_per_frame"], nlohmann::json({0.0, 0.0, 0.0}));
+}
+
+// A bad bias is exit 2 with a message naming the flag.
+TEST(RenderCli, RotationBiasFlagsNameThemselvesInErrors) {
+  const auto out = TempDir() / "x";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--rotation-bias-per-frame", "1,2"}, "--rotation-bias-per-frame expects PITCH,YAW,ROLL"},
+      {{"--rotation-bias-per-frame", "1,2,3,4"}, "--rotation-bias-per-frame expects"},
+      {{"--rotation-bias-per-frame", "0,0,nan"}, "--rotation-bias-per-frame expects"},
+      {{"--rotation-bias-per-frame", "0,0,180"}, "--rotation-bias-per-frame must be finite"},
+      {{"--rotation-bias", "x,0,0"}, "--rotation-bias expects PITCH,YAW,ROLL"},
+      {{"--rotation-bias", "1,,2"}, "--rotation-bias expects"},
+      {{"--rotation-bias", "0,1,0", "--raw", out.string()}, "cannot be combined with --raw"},
+  };
+  for (const auto& [flags, message] : cases) {
+    std::vector<std::string> args = {"render", "--world",      "aerial", "--frames",
+                                     "3",      "--poses-only", "--out",  out.string()};
+    args.insert(args.end(), flags.begin(), flags.end());
+    const CliResult r = RunCli(args);
+    EXPECT_EQ(r.exit_code, 2) << flags[1];
+    EXPECT_NE(r.err.find(message), std::string::npos) << flags[1] << ": " << r.err;
+  }
+}
+
 TEST(RenderCli, BadArgumentsExit2) {
   const auto out = TempDir() / "x";
   EXPECT_EQ(RunCli({"render", "--world", "moon", "--out", out.string()}).exit_code, 2);

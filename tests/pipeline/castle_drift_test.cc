@@ -3,16 +3,18 @@
 // growth per keyframe, plus seeded random per-step noise). The pipeline must find the ring
 // closure and the corrected trajectory must be much closer to the GT than the raw one: a verified
 // loop pulls the drift back (docs/POSEGRAPH.md, "Loop information").
+// Issue #43 part 3: the same family under a bias about the other camera axes (pitch, roll). Its
+// correction target (<= 40 % of raw) is not met today (bench/castle_drift measures it); the tests
+// here check that the drift is the one named and that the ring closure is still found.
+#include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <random>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "real_data.h"
+#include "castle_input.h"
 #include "sparseloop/eval/metrics.h"
 #include "sparseloop/pipeline/pipeline.h"
 #include "test_util.h"
@@ -20,69 +22,8 @@
 namespace sparseloop {
 namespace {
 
-struct Castle {
-  Dataset dataset;
-  Trajectory gt;
-};
-
-// The 30 views with their exact poses (tests/support/real_data.h reads the Strecha cameras).
-Castle LoadCastleDataset() {
-  Castle c;
-  const auto root = test::DataDir() / "castle_p30_768";
-  c.dataset.kind = "images";
-  c.dataset.root = root / "images";
-  c.gt.has_rotation = true;
-  for (int i = 0; i < 30; ++i) {
-    const test::Frame f = test::ReadStrechaCamera(
-        root / "gt_dense_cameras" / fmt::format("{:04d}.jpg.camera", i), /*transpose=*/false);
-    if (i == 0) c.dataset.intrinsics = f.intrinsics;
-    DatasetFrame frame;
-    frame.index = i;
-    frame.timestamp = i;
-    frame.image_path = root / "images" / fmt::format("{:04d}.jpg", i);
-    c.dataset.frames.push_back(frame);
-    StampedPose p;
-    p.frame = i;
-    p.timestamp = i;
-    p.world_from_cam = f.world_from_cam;
-    c.gt.poses.push_back(p);
-  }
-  return c;
-}
-
-struct DriftSpec {
-  double yaw_deg = 0.0;     // heading bias per keyframe, about the camera's y axis (image down)
-  double scale_step = 1.0;  // each raw step length is multiplied by scale_step^i
-  uint64_t seed = 0;        // per-step noise: 0.1 deg rotation, 1 % translation (0 = none)
-};
-
-// Monocular drift of a raw vSLAM trajectory: every raw step is the GT step with the bias (and
-// noise) applied, chained from the exact first pose.
-Trajectory Drift(const Trajectory& gt, const DriftSpec& spec) {
-  std::mt19937_64 rng(spec.seed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  const Eigen::Quaterniond yaw(
-      Eigen::AngleAxisd(spec.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
-  Trajectory raw = gt;
-  Rigid3d pose = gt.poses[0].world_from_cam;
-  for (size_t i = 1; i < gt.poses.size(); ++i) {
-    const Rigid3d& a = gt.poses[i - 1].world_from_cam;
-    const Rigid3d& b = gt.poses[i].world_from_cam;
-    Eigen::Quaterniond step_r = a.rotation.conjugate() * b.rotation * yaw;
-    Eigen::Vector3d step_t = a.rotation.conjugate() * (b.translation - a.translation);
-    step_t *= std::pow(spec.scale_step, static_cast<double>(i));
-    if (spec.seed != 0) {
-      const Eigen::Vector3d w(n01(rng), n01(rng), n01(rng));
-      step_r = step_r *
-               Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * M_PI / 180.0 * w.norm(), w.normalized()));
-      step_t += 0.01 * step_t.norm() * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
-    }
-    pose = Rigid3d(pose.rotation * step_r, pose.translation + pose.rotation * step_t);
-    pose.rotation.normalize();
-    raw.poses[i].world_from_cam = pose;
-  }
-  return raw;
-}
+using test::CastleDrift;
+using test::CastleRing;
 
 double Ate(const Trajectory& gt, const Trajectory& est) {
   EvaluationOptions options;
@@ -92,18 +33,18 @@ double Ate(const Trajectory& gt, const Trajectory& est) {
 }
 
 struct FamilyRow {
-  DriftSpec spec;
+  CastleDrift spec;
   double raw_ate = 0.0;
   double corrected_ate = 0.0;
   int loops = 0;
   int accepted = 0;
 };
 
-FamilyRow RunFamilyRow(const Castle& castle, const DriftSpec& spec,
+FamilyRow RunFamilyRow(const CastleRing& castle, const CastleDrift& spec,
                        const PipelineOptions& options) {
   FamilyRow row;
   row.spec = spec;
-  const Trajectory raw = Drift(castle.gt, spec);
+  const Trajectory raw = test::DriftCastle(castle.gt, spec);
   const PipelineResult result = RunPipeline(castle.dataset, raw, options);
   row.raw_ate = Ate(castle.gt, raw);
   row.corrected_ate = Ate(castle.gt, result.corrected);
@@ -112,32 +53,154 @@ FamilyRow RunFamilyRow(const Castle& castle, const DriftSpec& spec,
   return row;
 }
 
-std::vector<DriftSpec> FamilySpecs() {
-  std::vector<DriftSpec> specs;
+// A heading (yaw) bias per keyframe: about the camera's y axis (image down).
+CastleDrift Yaw(double deg, double scale_step, uint64_t seed) {
+  return {Eigen::Vector3d(0.0, deg, 0.0), scale_step, seed};
+}
+
+std::vector<CastleDrift> FamilySpecs() {
+  std::vector<CastleDrift> specs;
   // The issue's five rows, then the same up to 1 deg and 1 % per keyframe with noise seeds.
   const std::vector<std::pair<double, double>> biases = {
       {0.2, 1.003}, {0.5, 1.005}, {1.0, 1.0}, {0.0, 1.01}, {1.0, 1.01}};
-  for (const auto& [yaw, scale] : biases) specs.push_back({yaw, scale, 0});
+  for (const auto& [yaw, scale] : biases) specs.push_back(Yaw(yaw, scale, 0));
   for (uint64_t seed : {11u, 12u}) {
-    for (const auto& [yaw, scale] : biases) specs.push_back({yaw, scale, seed});
+    for (const auto& [yaw, scale] : biases) specs.push_back(Yaw(yaw, scale, seed));
   }
   return specs;
 }
 
+// Every raw step of test::DriftCastle is the GT step turned by exactly the bias, about the camera
+// axis it names (x pitch, y yaw, z roll) and with its sign, its length times scale_step^i: a bias
+// applied about another axis, in the world frame, with the other sign or another magnitude fails.
+TEST(CastleDriftFamily, BiasTurnsEveryStepAboutItsCameraAxis) {
+  SL_REQUIRE_DATA("castle_p30_768/gt_dense_cameras/0029.jpg.camera");
+  const Trajectory gt = test::LoadCastleRing().gt;
+  ASSERT_EQ(gt.size(), 30u);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const double deg : {0.2, 1.0, -0.5}) {
+      SCOPED_TRACE(fmt::format("axis {} bias {} deg", axis, deg));
+      const CastleDrift spec{deg * Eigen::Vector3d::Unit(axis), 1.01, 0};
+      const Trajectory raw = test::DriftCastle(gt, spec);
+      ASSERT_EQ(raw.size(), gt.size());
+      const Eigen::Vector3d expected = deg * M_PI / 180.0 * Eigen::Vector3d::Unit(axis);
+      for (size_t i = 1; i < gt.size(); ++i) {
+        const Rigid3d g = gt.poses[i - 1].world_from_cam.Inverse() * gt.poses[i].world_from_cam;
+        const Rigid3d r = raw.poses[i - 1].world_from_cam.Inverse() * raw.poses[i].world_from_cam;
+        EXPECT_LT((LogSO3(g.rotation.conjugate() * r.rotation) - expected).norm(), 1e-9) << i;
+        EXPECT_LT((r.translation - std::pow(1.01, i) * g.translation).norm(),
+                  1e-9 * g.translation.norm())
+            << i;
+      }
+      // Keyframe 1 (keyframe 0 exact): the camera axis of the bias is the GT's, the two others
+      // are turned by |bias| about it.
+      const Eigen::Matrix3d r1 = raw.poses[1].world_from_cam.rotation.toRotationMatrix();
+      const Eigen::Matrix3d g1 = gt.poses[1].world_from_cam.rotation.toRotationMatrix();
+      EXPECT_LT((r1.col(axis) - g1.col(axis)).norm(), 1e-12);
+      for (int other = 0; other < 3; ++other) {
+        if (other == axis) continue;
+        EXPECT_NEAR(std::acos(std::clamp(r1.col(other).dot(g1.col(other)), -1.0, 1.0)),
+                    std::abs(expected[axis]), 1e-7);
+      }
+    }
+  }
+  // The heading bias of the family (about y) and no bias at all are what they were before the
+  // other axes: steps turned about y only, and the exact poses up to rounding.
+  const Trajectory none = test::DriftCastle(gt, {});
+  for (size_t i = 0; i < gt.size(); ++i) {
+    EXPECT_LT(
+        RotationAngle(none.poses[i].world_from_cam.rotation, gt.poses[i].world_from_cam.rotation),
+        1e-9);
+    EXPECT_LT(
+        (none.poses[i].world_from_cam.translation - gt.poses[i].world_from_cam.translation).norm(),
+        1e-9);
+  }
+}
+
+// Seeded noise comes on top of the bias: the same seed gives the same noise whatever the bias, so
+// the biased and the unbiased raw steps differ by exactly the bias.
+TEST(CastleDriftFamily, NoiseDoesNotDependOnTheBias) {
+  SL_REQUIRE_DATA("castle_p30_768/gt_dense_cameras/0029.jpg.camera");
+  const Trajectory gt = test::LoadCastleRing().gt;
+  const Trajectory plain = test::DriftCastle(gt, {Eigen::Vector3d::Zero(), 1.0, 12});
+  const Trajectory pitched = test::DriftCastle(gt, {Eigen::Vector3d(0.5, 0.0, 0.0), 1.0, 12});
+  const Trajectory other_seed = test::DriftCastle(gt, {Eigen::Vector3d::Zero(), 1.0, 13});
+  double seed_change = 0.0;
+  for (size_t i = 1; i < gt.size(); ++i) {
+    const auto step = [&](const Trajectory& t) {
+      return t.poses[i - 1].world_from_cam.Inverse() * t.poses[i].world_from_cam;
+    };
+    const Rigid3d a = step(plain), b = step(pitched);
+    // Exp(bias) sits between the GT step and the noise: noise^-1 Exp(bias) noise, a rotation of
+    // the same angle about a nearby axis.
+    EXPECT_NEAR(RotationAngle(a.rotation, b.rotation), 0.5 * M_PI / 180.0, 1e-9) << i;
+    EXPECT_LT((a.translation - b.translation).norm(), 1e-9) << i;
+    seed_change = std::max(seed_change, RotationAngle(a.rotation, step(other_seed).rotation));
+  }
+  EXPECT_GT(seed_change, 1e-4);  // the seed does change the noise
+}
+
+// Issue #43: the ring under pitch and roll bias, two magnitudes, one seed (bench/castle_drift
+// measures the whole family). Issue #43's correction target is not met today and not asserted
+// here (seed 11: pitch 84 % / 83 %, roll 0.5 deg 119 % of raw); what holds: doubling the bias
+// doubles the raw ATE, the ring closure is still found and accepted, and no other loop is.
+TEST(CastleDriftFamily, PitchAndRollBiasStillCloseTheRing) {
+  SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
+  const CastleRing castle = test::LoadCastleRing();
+  const PipelineOptions options;
+  for (const int axis : {0, 2}) {
+    double previous_raw_ate = 0.0;
+    for (const double deg : {0.5, 1.0}) {
+      const CastleDrift spec{deg * Eigen::Vector3d::Unit(axis), 1.0, 11};
+      SCOPED_TRACE(fmt::format("{} {} deg", axis == 0 ? "pitch" : "roll", deg));
+      const Trajectory raw = test::DriftCastle(castle.gt, spec);
+      const PipelineResult result = RunPipeline(castle.dataset, raw, options);
+      const double raw_ate = Ate(castle.gt, raw), corrected_ate = Ate(castle.gt, result.corrected);
+      int accepted = 0;
+      for (size_t i = 0; i < result.loops.size(); ++i) {
+        if (!result.loop_accepted[i]) continue;
+        ++accepted;
+        const LoopResult& loop = result.loops[i];
+        const Rigid3d exact = castle.gt.poses.at(loop.match_id).world_from_cam.Inverse() *
+                              castle.gt.poses.at(loop.query_id).world_from_cam;
+        // The ring closure (views at both ends of the ring), its rotation within 10 deg of the
+        // exact one (29 -> 02 under pitch: 5.4 deg off, the local error the loop inherits; the
+        // two-view false pair 11 -> 00 is 21 deg off).
+        EXPECT_GE(std::abs(loop.query_id - loop.match_id), 25)
+            << loop.query_id << " -> " << loop.match_id;
+        EXPECT_LT(RotationAngle(exact.rotation, loop.match_from_query.rotation) * 180.0 / M_PI,
+                  10.0)
+            << loop.query_id << " -> " << loop.match_id;
+      }
+      std::cerr << fmt::format(
+          "castle {} {:.1f} deg, seed 11: raw ATE {:.3f}, corrected {:.3f} ({:.0f} %), accepted "
+          "{}\n",
+          axis == 0 ? "pitch" : "roll", deg, raw_ate, corrected_ate,
+          100.0 * corrected_ate / raw_ate, accepted);
+      EXPECT_GE(accepted, 1);
+      if (previous_raw_ate > 0.0) {
+        EXPECT_GT(raw_ate, 1.6 * previous_raw_ate);
+        EXPECT_LT(raw_ate, 2.4 * previous_raw_ate);
+      }
+      previous_raw_ate = raw_ate;
+    }
+  }
+}
+
 TEST(CastleDriftFamily, CorrectedAteIsAtMost40PercentOfRaw) {
   SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
-  const Castle castle = LoadCastleDataset();
+  const CastleRing castle = test::LoadCastleRing();
   const PipelineOptions options;
-  for (const DriftSpec& spec : FamilySpecs()) {
+  for (const CastleDrift& spec : FamilySpecs()) {
     const FamilyRow row = RunFamilyRow(castle, spec, options);
     std::cerr << fmt::format(
         "castle drift {:.1f} deg, x{:.3f}, seed {}: raw ATE {:.3f}, corrected {:.3f} ({:.0f} %), "
         "loops {} accepted {}\n",
-        spec.yaw_deg, spec.scale_step, spec.seed, row.raw_ate, row.corrected_ate,
+        spec.bias_deg.y(), spec.scale_step, spec.seed, row.raw_ate, row.corrected_ate,
         100.0 * row.corrected_ate / row.raw_ate, row.loops, row.accepted);
-    EXPECT_GE(row.accepted, 1) << spec.yaw_deg << " " << spec.scale_step << " " << spec.seed;
+    EXPECT_GE(row.accepted, 1) << spec.bias_deg.y() << " " << spec.scale_step << " " << spec.seed;
     EXPECT_LE(row.corrected_ate, 0.4 * row.raw_ate)
-        << spec.yaw_deg << " deg, x" << spec.scale_step << ", seed " << spec.seed;
+        << spec.bias_deg.y() << " deg, x" << spec.scale_step << ", seed " << spec.seed;
   }
 }
 

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -83,6 +84,84 @@ TEST(SimulateDrift, ChainStepsCarryTheScale) {
   const auto est = LocalScale(gt, r.raw, 3);
   for (size_t i = 10; i + 10 < gt.size(); i += 37)
     EXPECT_NEAR(est[i], r.scale[i], 0.05 * r.scale[i]);
+}
+
+// The relative rotation of raw step i: gt_rel^-1 raw_rel as a rotation vector (rad).
+Eigen::Vector3d StepRotationError(const Trajectory& gt, const Trajectory& raw, size_t i) {
+  const Rigid3d raw_rel = raw.poses[i].world_from_cam.Inverse() * raw.poses[i + 1].world_from_cam;
+  const Rigid3d gt_rel = gt.poses[i].world_from_cam.Inverse() * gt.poses[i + 1].world_from_cam;
+  return LogSO3(gt_rel.rotation.conjugate() * raw_rel.rotation);
+}
+
+// A bias per frame about one camera axis (x pitch, y yaw, z roll): every raw step's rotation
+// differs from the GT step's by exactly that rotation, whatever the step length, and the steps'
+// translations are the GT's.
+TEST(SimulateDrift, PerFrameBiasIsEveryStepsRotationError) {
+  const Trajectory gt = StraightDrive(50);
+  for (int axis = 0; axis < 3; ++axis) {
+    SCOPED_TRACE(axis);
+    DriftOptions o = NoDrift();
+    o.rotation_bias_deg_per_frame = 0.7 * Eigen::Vector3d::Unit(axis);
+    const auto r = SimulateDrift(gt, o);
+    const Eigen::Vector3d expected = 0.7 * M_PI / 180.0 * Eigen::Vector3d::Unit(axis);
+    for (size_t i = 0; i + 1 < gt.size(); ++i) {
+      EXPECT_LT((StepRotationError(gt, r.raw, i) - expected).norm(), 1e-12) << i;
+      const Rigid3d raw_rel =
+          r.raw.poses[i].world_from_cam.Inverse() * r.raw.poses[i + 1].world_from_cam;
+      const Rigid3d gt_rel = gt.poses[i].world_from_cam.Inverse() * gt.poses[i + 1].world_from_cam;
+      EXPECT_LT((raw_rel.translation - gt_rel.translation).norm(), 1e-9) << i;
+    }
+    // About y, the axis of the drive's own turn, the 49 steps' errors add up to 34.3 deg.
+    if (axis == 1) {
+      EXPECT_NEAR(RotationAngle(r.raw.poses.back().world_from_cam.rotation,
+                                gt.poses.back().world_from_cam.rotation) *
+                      180.0 / M_PI,
+                  49 * 0.7, 1e-6);
+    }
+  }
+}
+
+// With the default noise and per-metre bias, the per-frame bias is one more factor per step and
+// draws no random numbers: the same seed gives the same steps, each turned by exactly the bias.
+TEST(SimulateDrift, PerFrameBiasComposesWithTheNoise) {
+  const Trajectory gt = StraightDrive(100);
+  DriftOptions o;
+  const auto plain = SimulateDrift(gt, o);
+  o.rotation_bias_deg_per_frame = {0.3, -0.2, 0.5};
+  const auto biased = SimulateDrift(gt, o);
+  const Eigen::Quaterniond bias = ExpSO3(o.rotation_bias_deg_per_frame * M_PI / 180.0);
+  for (size_t i = 0; i + 1 < gt.size(); ++i) {
+    const Rigid3d a =
+        plain.raw.poses[i].world_from_cam.Inverse() * plain.raw.poses[i + 1].world_from_cam;
+    const Rigid3d b =
+        biased.raw.poses[i].world_from_cam.Inverse() * biased.raw.poses[i + 1].world_from_cam;
+    EXPECT_LT(RotationAngle(b.rotation, a.rotation * bias), 1e-12) << i;
+    EXPECT_LT((b.translation - a.translation).norm(), 1e-9) << i;
+    EXPECT_DOUBLE_EQ(biased.scale[i + 1], plain.scale[i + 1]);
+  }
+}
+
+TEST(SimulateDrift, PerFrameBiasMustBeFiniteAndBelow180Degrees) {
+  const Trajectory gt = StraightDrive(5);
+  DriftOptions o;
+  for (const Eigen::Vector3d& bad :
+       {Eigen::Vector3d(std::nan(""), 0.0, 0.0), Eigen::Vector3d(0.0, 0.0, 180.0),
+        Eigen::Vector3d(150.0, 150.0, 0.0)}) {
+    o.rotation_bias_deg_per_frame = bad;
+    EXPECT_THROW(
+        {
+          try {
+            SimulateDrift(gt, o);
+          } catch (const std::invalid_argument& e) {
+            EXPECT_NE(std::string(e.what()).find("rotation_bias_per_frame"), std::string::npos)
+                << e.what();
+            throw;
+          }
+        },
+        std::invalid_argument);
+  }
+  o.rotation_bias_deg_per_frame = {0.0, 0.0, 179.0};
+  EXPECT_NO_THROW(SimulateDrift(gt, o));
 }
 
 TEST(SimulateDrift, SeededAndNoisy) {

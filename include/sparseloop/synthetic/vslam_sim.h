@@ -15,12 +15,17 @@ namespace sparseloop::synthetic {
 // The raw trajectory is a consistent chain built in the body frame:
 //   raw_0 = gt_0 (translation times initial_scale),
 //   raw_{i+1} = raw_i * [ R_i | s_i * t_i ],  with  [R_i | t_i] = noisy(gt_i^-1 gt_{i+1}),
-// where the relative rotation is perturbed by Exp(bias * d + noise * sqrt(d) * n) (d = metres
-// travelled in the step, n ~ N(0, I)), the relative translation by Gaussian noise proportional to
-// the step length, and log(s) performs a random walk with drift per metre.
+// where the relative rotation is R_i = R_gt * Exp(bias * d + noise * sqrt(d) * n) * Exp(b_frame)
+// (d = metres travelled in the step, n ~ N(0, I), b_frame the bias per frame), the relative
+// translation gets Gaussian noise proportional to the step length, and log(s) performs a random
+// walk with drift per metre. Rotation vectors are in the camera frame: x right (pitch), y down
+// (yaw, the heading of a car or a level drone), z forward (roll about the optical axis).
 struct DriftOptions {
   double rotation_noise_deg_per_sqrt_m = 0.02;  // deg / sqrt(m), random-walk std-dev per axis
   Eigen::Vector3d rotation_bias_deg_per_100m{0.0, 0.6, 0.0};  // deg per 100 m, camera frame
+  // Rotation bias per frame (step i -> i + 1, whatever its length), degrees about camera x, y, z;
+  // each step's rotation error is exactly Exp(b_frame) times the per-metre terms. |b| < 180.
+  Eigen::Vector3d rotation_bias_deg_per_frame = Eigen::Vector3d::Zero();
   double translation_noise = 0.01;        // std-dev per axis, fraction of the step length
   double scale_noise_per_sqrt_m = 0.002;  // std-dev of d log(s) per sqrt(metre)
   double scale_bias_per_100m = 0.01;      // d log(s) per 100 m (monocular scale drift)
