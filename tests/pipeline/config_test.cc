@@ -165,23 +165,30 @@ TEST(Config, DocumentedBoundsAreTheCheckedBounds) {
   for (const ConfigKey& key : ConfigKeys()) {
     if (key.type != "integer" && key.type != "number") continue;
     SCOPED_TRACE(key.path + ": " + key.help);
-    const double step = key.type == "integer" ? 1.0 : 1e-9;
+    // Just outside a bound: the next integer, or a relative 1e-9 for a number.
+    const auto step = [&](double bound) {
+      return key.type == "integer" ? 1.0 : 1e-9 * std::max(1.0, std::abs(bound));
+    };
+    // "(0 = off, else >= 3)": 0 is a value of its own, not a value below the bound.
+    const bool zero_is_off = key.help.find("0 = off") != std::string::npos;
+    const auto refused_below = [&](double lo) {
+      const double outside = lo - step(lo);
+      if (zero_is_off && outside == 0.0) return;
+      EXPECT_FALSE(accepted(key, outside)) << outside;
+    };
     std::smatch m;
     if (std::regex_search(key.help, m, range)) {
       const double lo = std::stod(m[2]), hi = std::stod(m[3]);
       const bool lo_in = m[1] == "[", hi_in = m[4] == "]";
-      const double lo_step = step * std::max(1.0, std::abs(lo));
-      const double hi_step = step * std::max(1.0, std::abs(hi));
       EXPECT_EQ(accepted(key, lo), lo_in) << lo;
-      EXPECT_FALSE(accepted(key, lo - lo_step)) << lo - lo_step;
+      refused_below(lo);
       EXPECT_EQ(accepted(key, hi), hi_in) << hi;
-      EXPECT_FALSE(accepted(key, hi + hi_step)) << hi + hi_step;
+      EXPECT_FALSE(accepted(key, hi + step(hi))) << hi + step(hi);
       ++checked;
     } else if (std::regex_search(key.help, m, at_least)) {
       const double lo = std::stod(m[2]);
-      const double lo_step = step * std::max(1.0, std::abs(lo));
       EXPECT_EQ(accepted(key, lo), m[1] == ">=") << lo;
-      EXPECT_FALSE(accepted(key, lo - lo_step)) << lo - lo_step;
+      refused_below(lo);
       ++checked;
     }
   }
