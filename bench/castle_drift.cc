@@ -66,6 +66,8 @@ json LoopRow(const Trajectory& gt, const LoopResult& loop, bool accepted) {
       {"inliers", loop.inliers},
       {"local_map_points", loop.local_map_points},
       {"local_map_inliers", loop.local_map_inliers},
+      {"local_poses_from_images", loop.local_poses_from_images},
+      {"local_poses_raw", loop.local_poses_raw},
       {"rotation_error_deg", Deg(RotationAngle(exact.rotation, loop.match_from_query.rotation))},
       {"translation_direction_error_deg",
        Deg(std::acos(std::clamp(t.normalized().dot(exact.translation.normalized()), -1.0, 1.0)))},

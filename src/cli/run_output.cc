@@ -358,7 +358,8 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
   WriteFileAtomically(path, [&](std::ostream& os) {
     os << "query,match,score,inliers,status,pose_kind,planar_alternative,"
        << (graph_columns ? "accepted,correct," : "")
-       << "qx,qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image\n";
+       << "qx,qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image,method,"
+          "local_poses_from_images,local_poses_raw\n";
     os << std::setprecision(10);
     for (size_t i = 0; i < loops.size(); ++i) {
       const LoopResult& l = loops[i];
@@ -376,7 +377,8 @@ void WriteLoopsCsv(const std::filesystem::path& path, const std::vector<LoopResu
       }
       os << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ',' << t.x() << ',' << t.y()
          << ',' << t.z() << ',' << l.match_from_query.scale << ',' << l.match_session
-         << ImageColumns(l, images) << '\n';
+         << ImageColumns(l, images) << ',' << ToString(l.method) << ',' << l.local_poses_from_images
+         << ',' << l.local_poses_raw << '\n';
     }
   });
 }

@@ -245,11 +245,12 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
     v = VerifyPair(query, two_view, matches, verify);
   }
   int map_points = 0, map_inliers = 0;
+  PoseSources sources;
   if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
       options_.local_map.enabled && match.has_pose) {
-    VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points);
+    VerificationResult m = VerifyAgainstLocalMap(query, match_index, &map_points, &sources);
     if (!m.success && options_.local_map.query_points)
-      m = VerifyWithQueryPoints(query, match_index, matches);
+      m = VerifyWithQueryPoints(query, match_index, matches, &sources);
     if (m.success) {
       map_inliers = m.inliers;
       v.method = m.method;
@@ -260,6 +261,8 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
   }
   trial->local_map_points = map_inliers > 0 ? map_points : 0;
   trial->local_map_inliers = map_inliers;
+  trial->local_poses_from_images = map_inliers > 0 ? sources.images : 0;
+  trial->local_poses_raw = map_inliers > 0 ? sources.raw : 0;
   trial->match_id = match.id;
   trial->matches = static_cast<int>(matches.size());
   trial->inliers = v.inliers;

@@ -34,7 +34,11 @@ const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRe
   if (!query.has_pose) return q;
   const Options::LocalMapOptions& lm = options_.local_map;
   std::vector<const KeyframeRecord*> before;
-  for (int64_t k = 1; k <= lm.neighbours; ++k) {
+  // Only the query's recent stretch (the keyframes a search excludes): a keyframe that can be the
+  // match would make the loop pose the raw relative pose it was triangulated with.
+  const int64_t recent =
+      std::min<int64_t>(lm.neighbours, std::max(0, options_.search.exclude_recent));
+  for (int64_t k = 1; k <= recent; ++k) {
     const int64_t i = static_cast<int64_t>(query_index) - k;
     if (i >= 0 && records_[static_cast<size_t>(i)].has_pose() &&
         SameSegment(static_cast<size_t>(i), query_index))
@@ -42,15 +46,19 @@ const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRe
   }
   const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
   if (tri.triangulated > 0) q.depths = tri.depths;
+  query_points_->image_poses = tri.image_poses;
+  query_points_->raw_poses = tri.raw_poses;
   return q;
 }
 
-VerificationResult LoopDetector::VerifyWithQueryPoints(
-    const KeyframeRecord& query, size_t match_index,
-    const std::vector<DescriptorMatch>& matches) const {
+VerificationResult LoopDetector::VerifyWithQueryPoints(const KeyframeRecord& query,
+                                                       size_t match_index,
+                                                       const std::vector<DescriptorMatch>& matches,
+                                                       PoseSources* sources) const {
   VerificationResult none;
   none.method = VerificationMethod::kPnP;
   const KeyframeRecord& q = QueryWithTriangulatedDepths(query, index_of_.at(query.id));
+  *sources = PoseSources{query_points_->image_poses, query_points_->raw_poses};
   if (!q.has_depths()) return none;
   int usable = 0;
   for (const DescriptorMatch& m : matches) usable += q.depths[static_cast<size_t>(m.query)] > 0;
@@ -64,7 +72,8 @@ VerificationResult LoopDetector::VerifyWithQueryPoints(
 }
 
 VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
-                                                       size_t match_index, int* map_points) const {
+                                                       size_t match_index, int* map_points,
+                                                       PoseSources* sources) const {
   const Options::LocalMapOptions& lm = options_.local_map;
   const KeyframeRecord& match = Stored(match_index);
   // Only keyframes well before the query: the map must not contain the query's own stretch.
@@ -96,8 +105,20 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
       if (usable(w - k)) neighbours.push_back(&Stored(static_cast<size_t>(w - k)));
     }
     const TriangulationResult tri = TriangulateFromNeighbours(kf, neighbours, lm.triangulation);
+    sources->images += tri.image_poses;
+    sources->raw += tri.raw_poses;
     if (tri.triangulated == 0) continue;
-    const Sim3d match_from_kf = match_from_world * kf.world_from_cam;
+    // The map keyframe in the match's frame: from the images where they fix it (the raw relative
+    // rotation carries the odometry's rotation drift between the two), else the raw poses.
+    Sim3d match_from_kf = match_from_world * kf.world_from_cam;
+    if (w != mi) {
+      const std::optional<Sim3d> from_images = RelativePoseFromImages(
+          kf, match, MatchDescriptors(kf.descriptors, match.descriptors, lm.triangulation.match),
+          match_from_kf, lm.triangulation.min_image_pose_inliers,
+          lm.triangulation.image_pose_prior_deg);
+      ++(from_images ? sources->images : sources->raw);
+      if (from_images) match_from_kf = *from_images;
+    }
     std::vector<int> map_index(kf.size(), -1);
     for (size_t j = 0; j < kf.size(); ++j) {
       if (tri.depths[j] <= 0) continue;
@@ -138,6 +159,8 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
   // between the two places; VerifyPair falls back to PnP (the map against the query's 2D) when
   // the 3D-3D model does not verify.
   const KeyframeRecord& q = QueryWithTriangulatedDepths(query, query_index);
+  sources->images += query_points_->image_poses;
+  sources->raw += query_points_->raw_poses;
   VerifyOptions verify = verify_;
   verify.scale_from_query_depths_min = kMinScalePairs;
   const VerificationResult v = VerifyPair(q, map, matches, verify);

@@ -39,15 +39,22 @@ double Sampson(const Eigen::Matrix3d& e, const Eigen::Vector3d& xm, const Eigen:
 // the optimum: on castle 29 -> 1 it left the translation direction 41 deg off where the optimum
 // of the same inliers is 18 deg off (docs/DETECTOR.md).
 void RefineEssential(const std::vector<Eigen::Vector3d>& xm, const std::vector<Eigen::Vector3d>& xq,
-                     double huber, Eigen::Matrix3d* r, Eigen::Vector3d* t) {
+                     double huber, const TwoViewModel& prior, Eigen::Matrix3d* r,
+                     Eigen::Vector3d* t) {
   const int n = static_cast<int>(xm.size());
   if (n < 6) return;
   using Vec5 = Eigen::Matrix<double, 5, 1>;
   using Mat5 = Eigen::Matrix<double, 5, 5>;
+  const int np = prior.prior_weight > 0 ? 6 : 0;  // prior residuals after the n Sampson ones
   auto residuals = [&](const Eigen::Matrix3d& rr, const Eigen::Vector3d& tt) {
     const Eigen::Matrix3d e = Hat(tt) * rr;
-    Eigen::VectorXd res(n);
+    Eigen::VectorXd res(n + np);
     for (int i = 0; i < n; ++i) res(i) = Sampson(e, xm[i], xq[i]);
+    if (np > 0) {
+      res.segment<3>(n) =
+          prior.prior_weight * LogSO3(Eigen::Quaterniond(rr * prior.prior_r.transpose()));
+      res.segment<3>(n + 3) = prior.prior_weight * (tt - prior.prior_t);
+    }
     return res;
   };
   auto apply = [](const Vec5& d, const Eigen::Matrix3d& r0, const Eigen::Vector3d& t0,
@@ -63,12 +70,12 @@ void RefineEssential(const std::vector<Eigen::Vector3d>& xm, const std::vector<E
       const double a = std::abs(rr(i));
       c += a <= huber ? 0.5 * a * a : huber * (a - 0.5 * huber);
     }
-    return c;
+    return c + 0.5 * rr.tail(np).squaredNorm();
   };
   Eigen::VectorXd res = residuals(*r, *t);
   double c0 = cost(res);
   double lambda = 1e-3;
-  Eigen::MatrixXd jac(n, 5);
+  Eigen::MatrixXd jac(n + np, 5);
   for (int iter = 0; iter < 50; ++iter) {
     const double h = 1e-7;
     for (int k = 0; k < 5; ++k) {
@@ -79,7 +86,7 @@ void RefineEssential(const std::vector<Eigen::Vector3d>& xm, const std::vector<E
       apply(d, *r, *t, &r1, &t1);
       jac.col(k) = (residuals(r1, t1) - res) / h;
     }
-    Eigen::VectorXd w(n);
+    Eigen::VectorXd w = Eigen::VectorXd::Ones(n + np);  // the prior's residuals are plain squares
     for (int i = 0; i < n; ++i) w(i) = std::abs(res(i)) <= huber ? 1.0 : huber / std::abs(res(i));
     const Mat5 jtj = jac.transpose() * w.asDiagonal() * jac;
     const Vec5 jtr = jac.transpose() * w.asDiagonal() * res;
@@ -145,13 +152,24 @@ std::vector<uint8_t> LocallyOptimise(const TwoViewData& d, int rounds, TwoViewMo
       xm.push_back(d.all_m[i]);
       xq.push_back(d.all_q[i]);
     }
-    RefineEssential(xm, xq, d.threshold, &mdl->r, &mdl->t);
+    RefineEssential(xm, xq, d.threshold, *mdl, &mdl->r, &mdl->t);
     const std::vector<uint8_t> now = InlierMask(d, *mdl);
     const bool changed = now != cur;
     cur = now;
     if (!changed) break;
   }
   return cur;
+}
+
+std::vector<uint8_t> RefineFromPrior(const TwoViewData& d, double initial_threshold, int rounds,
+                                     TwoViewModel* mdl) {
+  TwoViewData at = d;
+  for (double threshold = std::max(initial_threshold, d.threshold);; threshold *= 0.5) {
+    at.threshold = std::max(threshold, d.threshold);
+    LocallyOptimise(at, rounds, mdl);
+    if (at.threshold <= d.threshold) break;
+  }
+  return InlierMask(d, *mdl);
 }
 
 void FinishTwoView(const TwoViewData& d, const TwoViewModel& mdl, std::vector<uint8_t> in,

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 
+#include "matching/verification_internal.h"
 #include "sparseloop/core/check.h"
 
 namespace sparseloop {
@@ -14,7 +15,63 @@ void TriangulationOptions::Check() const {
   SL_CHECK_MSG(std::isfinite(min_parallax_deg) && min_parallax_deg >= 0 && min_parallax_deg < 90,
                "triangulation.min_parallax_deg must be in [0, 90) degrees, got {}",
                min_parallax_deg);
+  SL_CHECK_MSG(min_image_pose_inliers == 0 || min_image_pose_inliers >= 8,
+               "triangulation.min_image_pose_inliers must be 0 (raw poses only) or >= 8, got {}",
+               min_image_pose_inliers);
+  SL_CHECK_MSG(std::isfinite(image_pose_prior_deg) && image_pose_prior_deg > 0 &&
+                   image_pose_prior_deg <= kMaxImagePoseRotationChangeDeg,
+               "triangulation.image_pose_prior_deg must be in (0, {}] degrees, got {}",
+               kMaxImagePoseRotationChangeDeg, image_pose_prior_deg);
   match.Check();
+}
+
+namespace {
+
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI;
+}
+
+}  // namespace
+
+std::optional<Sim3d> RelativePoseFromImages(const KeyframeRecord& a, const KeyframeRecord& b,
+                                            const std::vector<DescriptorMatch>& matches,
+                                            const Sim3d& raw_b_from_a, int min_inliers,
+                                            double prior_deg, std::vector<int>* inliers) {
+  const double baseline = raw_b_from_a.translation.norm();
+  if (min_inliers <= 0 || static_cast<int>(matches.size()) < min_inliers || !(baseline > 0))
+    return std::nullopt;
+  // The two-view model is query_from_match with query = a, match = b: a_from_b, unit direction.
+  const VerifyOptions verify;
+  const float focal = std::max(1.0f, 0.5f * (a.focal_px + b.focal_px));
+  const matching_internal::TwoViewData data =
+      matching_internal::MakeTwoViewData(a, b, matches, verify.threshold_px / focal);
+  const Eigen::Matrix3d r_ba = raw_b_from_a.rotation.toRotationMatrix();
+  matching_internal::TwoViewModel model{
+      r_ba.transpose(), (-r_ba.transpose() * raw_b_from_a.translation).normalized()};
+  // The raw pose as a prior of `prior_deg` per axis against image noise of half the inlier
+  // threshold: where the matches fix the pose (roll about the optical axis, rotation with the
+  // baseline known) they win; where two views leave it loose (the rotation / translation
+  // ambiguity of a narrow field of view) it stays near the raw pose.
+  model.prior_weight = 0.5 * data.threshold / (prior_deg * M_PI / 180.0);
+  model.prior_r = model.r;
+  model.prior_t = model.t;
+  const std::vector<uint8_t> in =
+      matching_internal::RefineFromPrior(data, std::sin(kImagePosePriorErrorDeg * M_PI / 180.0),
+                                         verify.local_optimization_rounds, &model);
+  std::vector<int> agree;
+  for (size_t i = 0; i < in.size(); ++i)
+    if (in[i]) agree.push_back(static_cast<int>(i));
+  if (static_cast<int>(agree.size()) < min_inliers) return std::nullopt;
+  Sim3d out = raw_b_from_a;
+  out.rotation = Eigen::Quaterniond(model.r.transpose()).normalized();
+  const Eigen::Vector3d direction = (-model.r.transpose() * model.t).normalized();
+  if (out.rotation.angularDistance(raw_b_from_a.rotation) * 180.0 / M_PI >
+          kMaxImagePoseRotationChangeDeg ||
+      AngleDeg(direction, raw_b_from_a.translation) > kMaxImagePoseDirectionChangeDeg)
+    return std::nullopt;
+  out.translation = direction * baseline;
+  if (inliers != nullptr) *inliers = std::move(agree);
+  return out;
 }
 
 TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
@@ -31,14 +88,23 @@ TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
     if (n == nullptr || !n->has_pose || n->size() == 0) continue;
     const float focal = std::max(1.0f, 0.5f * (record.focal_px + n->focal_px));
     const double max_err = options.max_reprojection_px / focal;
+    const std::vector<DescriptorMatch> matches =
+        MatchDescriptors(record.descriptors, n->descriptors, options.match);
     // Point X in the record's camera frame maps to the neighbour's as s R X + t.
-    const Sim3d n_from_r = n->world_from_cam.Inverse() * record.world_from_cam;
+    Sim3d n_from_r = n->world_from_cam.Inverse() * record.world_from_cam;
+    if (const std::optional<Sim3d> from_images =
+            RelativePoseFromImages(record, *n, matches, n_from_r, options.min_image_pose_inliers,
+                                   options.image_pose_prior_deg)) {
+      n_from_r = *from_images;
+      ++out.image_poses;
+    } else {
+      ++out.raw_poses;
+    }
     const Eigen::Matrix3d sr = n_from_r.scale * n_from_r.rotation.toRotationMatrix();
     const Eigen::Matrix3d sr_inv = sr.inverse();  // once per neighbour, not per match
     const Eigen::Vector3d t = n_from_r.translation;
     if (t.norm() <= 0) continue;  // no baseline
-    for (const DescriptorMatch& m :
-         MatchDescriptors(record.descriptors, n->descriptors, options.match)) {
+    for (const DescriptorMatch& m : matches) {
       const CompactKeypoint& kr = record.keypoints[m.query];
       const CompactKeypoint& kn = n->keypoints[m.train];
       const Eigen::Vector3d fr(kr.x, kr.y, 1.0);

@@ -40,6 +40,12 @@ TwoViewData MakeTwoViewData(const KeyframeRecord& query, const KeyframeRecord& m
 struct TwoViewModel {
   Eigen::Matrix3d r;
   Eigen::Vector3d t;
+  // A prior on the refined pose (RefineFromPrior): residuals LogSO3(R prior_r^T) and
+  // t - prior_t, each times prior_weight (normalised image units per radian), beside the
+  // Sampson distances. 0 = no prior.
+  double prior_weight = 0.0;
+  Eigen::Matrix3d prior_r = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d prior_t = Eigen::Vector3d::Zero();
 };
 
 // Matches whose Sampson distance under the model is below the threshold.
@@ -47,6 +53,13 @@ std::vector<uint8_t> InlierMask(const TwoViewData& d, const TwoViewModel& mdl);
 // Local optimisation (LO-RANSAC style): refine (R, t) on the inliers, re-select the inliers among
 // ALL matches with the refined model, repeat until the set is stable. Returns the inlier mask.
 std::vector<uint8_t> LocallyOptimise(const TwoViewData& d, int rounds, TwoViewModel* mdl);
+// Local optimisation from a given model (a prior pose near the truth, not a RANSAC sample): the
+// inlier threshold starts at `initial_threshold` (normalised units, wide enough for the prior's
+// error) and halves down to d.threshold, with LocallyOptimise at each. Starting near the truth
+// keeps it in the right basin where a RANSAC over a planar scene can pick a wrong decomposition.
+// Returns the inlier mask at d.threshold.
+std::vector<uint8_t> RefineFromPrior(const TwoViewData& d, double initial_threshold, int rounds,
+                                     TwoViewModel* mdl);
 // The decomposition of the refined essential matrix with most inliers in front of both cameras
 // (recoverPose), then a cheirality check per inlier; fills inliers, inlier_matches, pose_kind and
 // match_from_query (unit translation) of `result`.

@@ -251,6 +251,13 @@ void AddMatchingKeys(KeyList& k) {
         "px", "a map point must reproject within this in both views");
   k.Add(l + "min_parallax_deg", SL_FIELD(detector.local_map.triangulation.min_parallax_deg), "deg",
         "smallest angle between the two rays of a map point");
+  k.Add(l + "min_image_pose_inliers",
+        SL_FIELD(detector.local_map.triangulation.min_image_pose_inliers), "inliers",
+        "a neighbour's relative pose from the images (essential matrix) when this many matches "
+        "agree, else the raw one (0 = off: raw poses only, else >= 8)");
+  k.Add(l + "image_pose_prior_deg", SL_FIELD(detector.local_map.triangulation.image_pose_prior_deg),
+        "deg",
+        "the raw relative pose's error between neighbours, the prior of that estimate (0, 10]");
   k.Add(l + "match.max_distance", SL_FIELD(detector.local_map.triangulation.match.max_distance),
         "bits", "triangulation matching: largest Hamming distance");
   k.Add(l + "match.ratio", SL_FIELD(detector.local_map.triangulation.match.ratio), "ratio",

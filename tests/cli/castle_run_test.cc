@@ -150,7 +150,8 @@ TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
     EXPECT_LT(optimizer["final_cost"].get<double>(), optimizer["initial_cost"].get<double>());
     EXPECT_EQ(loops_csv.substr(0, loops_csv.find('\n')),
               "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,"
-              "qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image");
+              "qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image,method,"
+              "local_poses_from_images,local_poses_raw");
     // Reached (session 24): 1.107 -> 0.247 m (22 %) and 2.967 -> 0.531 m (18 %), one metric loop
     // 29 -> 02 (local-map PnP) each; session 5 reached 89 % at the smaller drift (the odometry
     // model was stiffer than this drift until the weight rounds of session 22).

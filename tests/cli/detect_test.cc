@@ -22,7 +22,6 @@ std::string ReadAll(const std::filesystem::path& p) {
   return ss.str();
 }
 
-
 TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   SL_REQUIRE_DATA("castle_p30_768");
   const auto out = TempDir();
@@ -36,7 +35,8 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
   std::getline(lines, header);
   EXPECT_EQ(header,
             "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-            "scale,match_session,query_image,match_image");
+            "scale,match_session,query_image,match_image,method,"
+            "local_poses_from_images,local_poses_raw");
   int loops = 0, planar = 0;
   bool ring = false;
   for (std::string line; std::getline(lines, line);) {
@@ -46,7 +46,7 @@ TEST(CliDetect, CastleWithoutPosesFindsTheRingClosure) {
     std::vector<std::string> fields;
     std::istringstream row(line);
     for (std::string f; std::getline(row, f, ',');) fields.push_back(f);
-    ASSERT_EQ(fields.size(), 18u) << line;
+    ASSERT_EQ(fields.size(), 21u) << line;
     EXPECT_EQ(fields[16], fmt::format("{:04d}.jpg", q));  // the images' file names
     EXPECT_EQ(fields[17], fmt::format("{:04d}.jpg", m));
     EXPECT_EQ(fields[4], "detected");

@@ -22,7 +22,6 @@ std::string Slurp(const std::filesystem::path& p) {
   return ss.str();
 }
 
-
 // Camera centre of castle view i (Strecha format: K 3x3, 3 zeros, R 3x3, centre, w h).
 Eigen::Vector3d CastleCentre(int i) {
   char name[64];
@@ -44,7 +43,8 @@ std::vector<CsvLoop> ReadLoops(const std::filesystem::path& path) {
   std::getline(lines, header);
   EXPECT_EQ(header,
             "query,match,score,inliers,status,pose_kind,planar_alternative,qx,qy,qz,qw,tx,ty,tz,"
-            "scale,match_session,query_image,match_image");
+            "scale,match_session,query_image,match_image,method,"
+            "local_poses_from_images,local_poses_raw");
   std::vector<CsvLoop> out;
   for (std::string line; std::getline(lines, line);) {
     CsvLoop l;

@@ -238,7 +238,8 @@ TEST(CliRunSummary, LoopsCsvEndsWithImageNamesAndRunWritesFramesCsv) {
   std::getline(in, header);
   EXPECT_EQ(header,
             "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,"
-            "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image");
+            "qz,qw,tx,ty,tz,scale,match_session,query_image,match_image,method,"
+            "local_poses_from_images,local_poses_raw");
   const auto loops = ReadCsv(out / "loops.csv");
   ASSERT_FALSE(loops.empty());
   for (const auto& row : loops) {

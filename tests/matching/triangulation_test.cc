@@ -1,5 +1,6 @@
 // TriangulateFromNeighbours against the ground truth of synthetic scenes: exact depths from exact
 // observations (any raw scale), and each rejection rule (reprojection, parallax, cheirality).
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -155,6 +156,110 @@ TEST(Triangulation, BadInputIsRejectedWithAClearError) {
   bad = {};
   bad.min_parallax_deg = 90;
   EXPECT_THROW(bad.Check(), std::invalid_argument);
+  bad = {};
+  bad.min_image_pose_inliers = 7;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+  bad = {};
+  bad.image_pose_prior_deg = 0;
+  EXPECT_THROW(bad.Check(), std::invalid_argument);
+}
+
+// The odometry's relative pose of b drifted by `bias_deg` about one camera axis of b (x pitch,
+// y yaw, z roll): what a monocular vSLAM without an IMU hands over between neighbours.
+Sim3d Drifted(const Sim3d& world_from_b, int axis, double bias_deg) {
+  Sim3d out = world_from_b;
+  out.rotation =
+      world_from_b.rotation * ExpSO3(bias_deg * M_PI / 180.0 * Eigen::Vector3d::Unit(axis));
+  return out;
+}
+
+double RotationErrorDeg(const Sim3d& a, const Sim3d& b) {
+  return a.rotation.angularDistance(b.rotation) * 180.0 / M_PI;
+}
+
+// Median relative depth error of the triangulated keypoints.
+double MedianDepthError(const TriangulationResult& r, const std::vector<double>& truth) {
+  std::vector<double> e;
+  for (size_t i = 0; i < r.depths.size(); ++i)
+    if (r.depths[i] > 0) e.push_back(std::abs(r.depths[i] - truth[i]) / truth[i]);
+  if (e.empty()) return 1.0;
+  std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+  return e[e.size() / 2];
+}
+
+TEST(RelativePoseFromImages, RemovesTheRawRotationDriftAboutEveryAxis) {
+  // b 1 unit to the side (8 deg of parallax), observations with 0.5 px noise; the raw pose of b
+  // rotated by 1 deg about each camera axis in turn. The images fix roll and pitch; yaw trades
+  // against the sideways baseline in two views, and the prior keeps it no worse than raw.
+  const Sim3d a_from_b(1.0, ExpSO3(Eigen::Vector3d(0.0, 0.05, 0.0)), Eigen::Vector3d(1, 0, 0));
+  for (int axis = 0; axis < 3; ++axis) {
+    SCOPED_TRACE("axis " + std::to_string(axis));
+    Views v = MakeViews(20 + axis, 80, kWorldFromA, a_from_b, a_from_b);
+    auto rng = test::SeededRng(30 + axis);
+    std::normal_distribution<float> noise(0.0f, 0.5f / 500.0f);
+    for (CompactKeypoint& k : v.b.keypoints) {
+      k.x += noise(rng);
+      k.y += noise(rng);
+    }
+    const Sim3d exact = v.b.world_from_cam.Inverse() * v.a.world_from_cam;
+    v.b.world_from_cam = Drifted(v.b.world_from_cam, axis, 1.0);
+    const Sim3d raw = v.b.world_from_cam.Inverse() * v.a.world_from_cam;
+    std::vector<DescriptorMatch> matches;
+    for (int i = 0; i < 80; ++i) matches.push_back({i, i, 0});
+    std::vector<int> inliers;
+    const std::optional<Sim3d> refined =
+        RelativePoseFromImages(v.a, v.b, matches, raw, 15, 0.25, &inliers);
+    ASSERT_TRUE(refined.has_value());
+    EXPECT_GE(inliers.size(), 70u);
+    EXPECT_NEAR(RotationErrorDeg(raw, exact), 1.0, 1e-6);
+    // Roll and pitch: most of the drift removed; yaw: not worse than the raw pose.
+    EXPECT_LT(RotationErrorDeg(*refined, exact), axis == 1 ? 1.0 : 0.3);
+    // The baseline length (and the raw scale) come from the raw pose.
+    EXPECT_NEAR(refined->translation.norm(), raw.translation.norm(), 1e-9);
+    EXPECT_EQ(refined->scale, raw.scale);
+  }
+}
+
+TEST(RelativePoseFromImages, TriangulationWithADriftedNeighbourRecoversTheDepths) {
+  // The same scene, b's raw pose rolled 1 deg: with the raw relative pose most points fail the
+  // 2 px reprojection check or come out bent; with the pose from the images they come out right.
+  const Sim3d a_from_b(1.0, ExpSO3(Eigen::Vector3d(0.0, 0.05, 0.0)), Eigen::Vector3d(1, 0, 0));
+  Views v = MakeViews(40, 80, kWorldFromA, a_from_b, a_from_b);
+  v.b.world_from_cam = Drifted(v.b.world_from_cam, 2, 1.0);
+  TriangulationOptions raw_only;
+  raw_only.min_image_pose_inliers = 0;
+  const TriangulationResult raw = TriangulateFromNeighbours(v.a, {&v.b}, raw_only);
+  const TriangulationResult images = TriangulateFromNeighbours(v.a, {&v.b}, {});
+  EXPECT_EQ(raw.raw_poses, 1);
+  EXPECT_EQ(raw.image_poses, 0);
+  EXPECT_EQ(images.image_poses, 1);
+  EXPECT_EQ(images.raw_poses, 0);
+  EXPECT_GE(images.triangulated, 75);
+  EXPECT_LT(MedianDepthError(images, v.depth_in_a), 0.01);
+  EXPECT_LT(raw.triangulated, images.triangulated * 2 / 3);
+  EXPECT_GT(MedianDepthError(raw, v.depth_in_a), 3 * MedianDepthError(images, v.depth_in_a))
+      << MedianDepthError(raw, v.depth_in_a);
+}
+
+TEST(RelativePoseFromImages, WrongOrTooFewMatchesKeepTheRawPose) {
+  const Sim3d a_from_b(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0));
+  Views v = MakeViews(50, 60, kWorldFromA, a_from_b, a_from_b);
+  const Sim3d raw = v.b.world_from_cam.Inverse() * v.a.world_from_cam;
+  std::vector<DescriptorMatch> matches;
+  for (int i = 0; i < 60; ++i) matches.push_back({i, (i * 7 + 3) % 60, 0});  // shuffled
+  EXPECT_FALSE(RelativePoseFromImages(v.a, v.b, matches, raw, 15, 0.25).has_value());
+  matches.clear();
+  for (int i = 0; i < 10; ++i) matches.push_back({i, i, 0});  // right, but fewer than 15
+  EXPECT_FALSE(RelativePoseFromImages(v.a, v.b, matches, raw, 15, 0.25).has_value());
+  EXPECT_TRUE(RelativePoseFromImages(v.a, v.b, matches, raw, 8, 0.25).has_value());
+  // No baseline: nothing to take a length from.
+  EXPECT_FALSE(RelativePoseFromImages(v.a, v.b, matches, Sim3d(), 8, 0.25).has_value());
+  // Shuffled matches through the triangulation: the raw pose is used and counted.
+  for (size_t i = 0; i < v.b.descriptors.size(); ++i)
+    v.b.descriptors[i] = v.a.descriptors[(i * 7 + 3) % 60];
+  const TriangulationResult r = TriangulateFromNeighbours(v.a, {&v.b}, {});
+  EXPECT_EQ(r.raw_poses, 1);
+  EXPECT_EQ(r.image_poses, 0);
 }
 
 }  // namespace

@@ -144,6 +144,12 @@ struct LoopResult {
   // `inliers` stays the two-view count that detected the loop.
   int local_map_points = 0;
   int local_map_inliers = 0;
+  // The relative poses between keyframes inside that local geometry (each map keyframe and its
+  // neighbours, each map keyframe and the match, the query and the keyframes before it): how many
+  // came from the images (RelativePoseFromImages) and how many from the raw poses. Both 0 for a
+  // loop measured without a local geometry (two-view, or the vSLAM's depths).
+  int local_poses_from_images = 0;
+  int local_poses_raw = 0;
   // The pose is a planar alternative (Options::planar_alternatives), not the lowest-cost
   // two-view model, which the consistency check rejected; `inliers` are the alternative's.
   bool planar_alternative = false;
@@ -591,6 +597,7 @@ class LoopDetector {
     int64_t id = 0;
     size_t size = 0;
     KeyframeRecord record;
+    int image_poses = 0, raw_poses = 0;  // TriangulationResult's counts
   };
   mutable std::optional<QueryPoints> query_points_;
   // Clears the per-call caches (unpacked_, query_points_) when a new call starts.
@@ -601,9 +608,12 @@ class LoopDetector {
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].
   // Returns the verification (success false when the map or PnP falls short); *map_points = size
-  // of the map.
+  // of the map; *sources counts where its relative poses came from (LoopResult::local_poses_*).
+  struct PoseSources {
+    int images = 0, raw = 0;
+  };
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
-                                           int* map_points) const;
+                                           int* map_points, PoseSources* sources) const;
   // `query` with depths triangulated from the keyframes before it (raw poses; unchanged when it
   // has no pose or nothing triangulates). Computed once per call (query_points_).
   const KeyframeRecord& QueryWithTriangulatedDepths(const KeyframeRecord& query,
@@ -611,7 +621,8 @@ class LoopDetector {
   // Options::local_map.query_points: PnP of the match's keypoints against the query's
   // triangulated points (the pair's own matches), when the map around the match falls short.
   VerificationResult VerifyWithQueryPoints(const KeyframeRecord& query, size_t match_index,
-                                           const std::vector<DescriptorMatch>& matches) const;
+                                           const std::vector<DescriptorMatch>& matches,
+                                           PoseSources* sources) const;
 
   Options options_;
   VerifyOptions verify_;  // options_.verify with the effective min_inliers and seed
