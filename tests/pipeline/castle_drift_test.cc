@@ -140,11 +140,11 @@ TEST(CastleDriftFamily, NoiseDoesNotDependOnTheBias) {
   EXPECT_GT(seed_change, 1e-4);  // the seed does change the noise
 }
 
-// Issue #43: the ring under pitch and roll bias, two magnitudes, one seed (bench/castle_drift
-// measures the whole family). Issue #43's correction target is not met today and not asserted
-// here (seed 11: pitch 84 % / 83 %, roll 0.5 deg 119 % of raw); what holds: doubling the bias
-// doubles the raw ATE, the ring closure is still found and accepted, and no other loop is.
-TEST(CastleDriftFamily, PitchAndRollBiasStillCloseTheRing) {
+// The ring under pitch and roll bias, two magnitudes, one seed (bench/castle_drift measures the
+// whole family): doubling the bias doubles the raw ATE; the ring closure is found, accepted,
+// metric and within 1 deg of the exact relative pose whatever the bias; no other loop is
+// accepted; the correction brings pitch under 40 % of raw and roll under 75 %.
+TEST(CastleDriftFamily, PitchAndRollBiasCloseTheRingWithAnAccurateLoop) {
   SL_REQUIRE_DATA("castle_p30_768/images/0029.jpg");
   const CastleRing castle = test::LoadCastleRing();
   const PipelineOptions options;
@@ -163,13 +163,15 @@ TEST(CastleDriftFamily, PitchAndRollBiasStillCloseTheRing) {
         const LoopResult& loop = result.loops[i];
         const Rigid3d exact = castle.gt.poses.at(loop.match_id).world_from_cam.Inverse() *
                               castle.gt.poses.at(loop.query_id).world_from_cam;
-        // The ring closure (views at both ends of the ring), its rotation within 10 deg of the
-        // exact one (29 -> 02 under pitch: 5.4 deg off, the local error the loop inherits; the
-        // two-view false pair 11 -> 00 is 21 deg off).
+        // The ring closure (views at both ends of the ring), metric, its rotation within 1 deg
+        // of the exact one: the local map's relative poses come from the images, so the loop
+        // does not inherit the bias (with the raw relative poses 29 -> 02 was a two-view loop
+        // 5.4 deg off under pitch, and 1.8 / 2.8 deg off under 0.5 / 1 deg of roll).
         EXPECT_GE(std::abs(loop.query_id - loop.match_id), 25)
             << loop.query_id << " -> " << loop.match_id;
-        EXPECT_LT(RotationAngle(exact.rotation, loop.match_from_query.rotation) * 180.0 / M_PI,
-                  10.0)
+        EXPECT_NE(loop.pose_kind, RelativePoseKind::kSE3UnitTranslation);
+        EXPECT_GT(loop.local_poses_from_images, loop.local_poses_raw);
+        EXPECT_LT(RotationAngle(exact.rotation, loop.match_from_query.rotation) * 180.0 / M_PI, 1.0)
             << loop.query_id << " -> " << loop.match_id;
       }
       std::cerr << fmt::format(
@@ -178,6 +180,10 @@ TEST(CastleDriftFamily, PitchAndRollBiasStillCloseTheRing) {
           axis == 0 ? "pitch" : "roll", deg, raw_ate, corrected_ate,
           100.0 * corrected_ate / raw_ate, accepted);
       EXPECT_GE(accepted, 1);
+      // Pitch: 9-17 % of raw. Roll: 47-51 % (seed 11); the 40 % target is not met under roll
+      // (docs/POSEGRAPH.md, "Under pitch and roll"), but the correction no longer makes the
+      // trajectory worse than raw (119-129 % with the raw relative poses).
+      EXPECT_LT(corrected_ate, (axis == 0 ? 0.4 : 0.75) * raw_ate);
       if (previous_raw_ate > 0.0) {
         EXPECT_GT(raw_ate, 1.6 * previous_raw_ate);
         EXPECT_LT(raw_ate, 2.4 * previous_raw_ate);
