@@ -412,12 +412,13 @@ class LoopDetector {
     bool relocalize_without_pose = true;
     // Monocular loops (no depths on either side, a verified essential matrix): the query is
     // verified again by PnP against a local map, the keypoints of the match and its neighbours
-    // triangulated with their raw relative poses (accurate between neighbours even when the
-    // trajectory has drifted). This is the paper's image-to-map step for a vSLAM that hands over
-    // no depths, as ORB-SLAM's loop closing does against its map points. It gives the
-    // translation with its length (match camera units, as depths would) instead of a direction,
-    // and stays well conditioned when the loop's own baseline is short (docs/DETECTOR.md,
-    // "Local-map PnP"). The two-view result is kept when PnP does not verify.
+    // triangulated with relative poses from the images (RelativePoseFromImages: the raw ones
+    // refined by the pair's matches, so the odometry's rotation drift between neighbours does
+    // not bend the map; the raw ones where the images cannot). This is the paper's image-to-map
+    // step for a vSLAM that hands over no depths, as ORB-SLAM's loop closing does against its map
+    // points. It gives the translation with its length (match camera units, as depths would)
+    // instead of a direction, and stays well conditioned when the loop's own baseline is short
+    // (docs/DETECTOR.md, "Local-map PnP"). The two-view result is kept when PnP does not verify.
     struct LocalMapOptions {
       bool enabled = true;
       int window = 2;      // keyframes each side of the match whose points enter the map, >= 0
@@ -435,10 +436,10 @@ class LoopDetector {
     // Depths for the stored K when the vSLAM gives none (issue #19: the paper keeps features at
     // mapped points, points with a depth). Each keyframe with a pose and without depths keeps
     // its whole extraction for the next stored_depths_window keyframes; its K stored features
-    // are triangulated (local_map.triangulation: parallax, reprojection) with the raw poses
-    // against the whole extractions of the window's keyframes before it and, as they arrive,
-    // after it (the record is packed again when more of its K get a depth:
-    // LoopResult::updated_records). A later loop to it is then PnP of the query against the
+    // are triangulated (local_map.triangulation: parallax, reprojection, relative poses from the
+    // images where they fix them, else raw) against the whole extractions of the window's keyframes
+    // before it and, as they arrive, after it (the record is packed again when more of its K get a
+    // depth: LoopResult::updated_records). A later loop to it is then PnP of the query against the
     // match's points (metric, in the match's raw units) instead of a two-view direction; when
     // PnP falls short the two-view verification runs as before. Memory: the window's whole
     // extractions (RecentBufferBytes), and 2 B per stored feature. Experimental, off by default:
@@ -614,8 +615,9 @@ class LoopDetector {
   };
   VerificationResult VerifyAgainstLocalMap(const KeyframeRecord& query, size_t match_index,
                                            int* map_points, PoseSources* sources) const;
-  // `query` with depths triangulated from the keyframes before it (raw poses; unchanged when it
-  // has no pose or nothing triangulates). Computed once per call (query_points_).
+  // `query` with depths triangulated from the recent keyframes before it (relative poses from
+  // the images where they fix them, else raw; unchanged when it has no pose or nothing
+  // triangulates). Computed once per call (query_points_).
   const KeyframeRecord& QueryWithTriangulatedDepths(const KeyframeRecord& query,
                                                     size_t query_index) const;
   // Options::local_map.query_points: PnP of the match's keypoints against the query's
