@@ -44,7 +44,8 @@ const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRe
         SameSegment(static_cast<size_t>(i), query_index))
       before.push_back(&Stored(static_cast<size_t>(i)));
   }
-  const TriangulationResult tri = TriangulateFromNeighbours(query, before, lm.triangulation);
+  const TriangulationResult tri =
+      TriangulateFromNeighbours(query, before, lm.triangulation, &relative_poses_);
   if (tri.triangulated > 0) q.depths = tri.depths;
   query_points_->image_poses = tri.image_poses;
   query_points_->raw_poses = tri.raw_poses;
@@ -104,7 +105,8 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
       if (usable(w + k)) neighbours.push_back(&Stored(static_cast<size_t>(w + k)));
       if (usable(w - k)) neighbours.push_back(&Stored(static_cast<size_t>(w - k)));
     }
-    const TriangulationResult tri = TriangulateFromNeighbours(kf, neighbours, lm.triangulation);
+    const TriangulationResult tri =
+        TriangulateFromNeighbours(kf, neighbours, lm.triangulation, &relative_poses_);
     sources->images += tri.image_poses;
     sources->raw += tri.raw_poses;
     if (tri.triangulated == 0) continue;
@@ -112,10 +114,9 @@ VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& que
     // rotation carries the odometry's rotation drift between the two), else the raw poses.
     Sim3d match_from_kf = match_from_world * kf.world_from_cam;
     if (w != mi) {
-      const std::optional<Sim3d> from_images = RelativePoseFromImages(
+      const std::optional<Sim3d> from_images = relative_poses_.Get(
           kf, match, MatchDescriptors(kf.descriptors, match.descriptors, lm.triangulation.match),
-          match_from_kf, lm.triangulation.min_image_pose_inliers,
-          lm.triangulation.image_pose_prior_deg);
+          match_from_kf, lm.triangulation);
       ++(from_images ? sources->images : sources->raw);
       if (from_images) match_from_kf = *from_images;
     }

@@ -37,10 +37,13 @@ double Sampson(const Eigen::Matrix3d& e, const Eigen::Vector3d& xm, const Eigen:
 // unit sphere of t). The RANSAC model comes from 5 points; this uses all inliers. Plain
 // Gauss-Newton (the previous version) stopped at the first step that increased the cost, far from
 // the optimum: on castle 29 -> 1 it left the translation direction 41 deg off where the optimum
-// of the same inliers is 18 deg off (docs/DETECTOR.md).
+// of the same inliers is 18 deg off (docs/DETECTOR.md). With mdl->prior_weight > 0, six more
+// residuals (plain squares) hold (R, t) near the model's prior (TwoViewModel).
 void RefineEssential(const std::vector<Eigen::Vector3d>& xm, const std::vector<Eigen::Vector3d>& xq,
-                     double huber, const TwoViewModel& prior, Eigen::Matrix3d* r,
-                     Eigen::Vector3d* t) {
+                     double huber, TwoViewModel* mdl) {
+  Eigen::Matrix3d* r = &mdl->r;
+  Eigen::Vector3d* t = &mdl->t;
+  const TwoViewModel& prior = *mdl;  // prior_weight, prior_r, prior_t: not changed here
   const int n = static_cast<int>(xm.size());
   if (n < 6) return;
   using Vec5 = Eigen::Matrix<double, 5, 1>;
@@ -152,7 +155,7 @@ std::vector<uint8_t> LocallyOptimise(const TwoViewData& d, int rounds, TwoViewMo
       xm.push_back(d.all_m[i]);
       xq.push_back(d.all_q[i]);
     }
-    RefineEssential(xm, xq, d.threshold, *mdl, &mdl->r, &mdl->t);
+    RefineEssential(xm, xq, d.threshold, mdl);
     const std::vector<uint8_t> now = InlierMask(d, *mdl);
     const bool changed = now != cur;
     cur = now;

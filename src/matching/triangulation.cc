@@ -56,7 +56,7 @@ std::optional<Sim3d> RelativePoseFromImages(const KeyframeRecord& a, const Keyfr
   model.prior_r = model.r;
   model.prior_t = model.t;
   const std::vector<uint8_t> in =
-      matching_internal::RefineFromPrior(data, std::sin(kImagePosePriorErrorDeg * M_PI / 180.0),
+      matching_internal::RefineFromPrior(data, std::sin(kImagePoseFirstThresholdDeg * M_PI / 180.0),
                                          verify.local_optimization_rounds, &model);
   std::vector<int> agree;
   for (size_t i = 0; i < in.size(); ++i)
@@ -74,9 +74,28 @@ std::optional<Sim3d> RelativePoseFromImages(const KeyframeRecord& a, const Keyfr
   return out;
 }
 
+std::optional<Sim3d> RelativePoseCache::Get(const KeyframeRecord& a, const KeyframeRecord& b,
+                                            const std::vector<DescriptorMatch>& matches,
+                                            const Sim3d& raw_b_from_a,
+                                            const TriangulationOptions& options) {
+  const auto pa = reinterpret_cast<uintptr_t>(&a), pb = reinterpret_cast<uintptr_t>(&b);
+  const bool a_first = pa < pb;
+  const auto key = a_first ? std::make_pair(pa, pb) : std::make_pair(pb, pa);
+  auto it = second_from_first_.find(key);
+  if (it == second_from_first_.end()) {
+    std::optional<Sim3d> b_from_a = RelativePoseFromImages(
+        a, b, matches, raw_b_from_a, options.min_image_pose_inliers, options.image_pose_prior_deg);
+    if (b_from_a && !a_first) b_from_a = b_from_a->Inverse();
+    it = second_from_first_.emplace(key, b_from_a).first;
+  }
+  if (!it->second || a_first) return it->second;
+  return it->second->Inverse();
+}
+
 TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
                                               const std::vector<const KeyframeRecord*>& neighbours,
-                                              const TriangulationOptions& options) {
+                                              const TriangulationOptions& options,
+                                              RelativePoseCache* cache) {
   options.Check();
   SL_CHECK_MSG(record.has_pose, "triangulation needs the record's raw pose (keyframe {})",
                record.id);
@@ -88,22 +107,21 @@ TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
     if (n == nullptr || !n->has_pose || n->size() == 0) continue;
     const float focal = std::max(1.0f, 0.5f * (record.focal_px + n->focal_px));
     const double max_err = options.max_reprojection_px / focal;
-    const std::vector<DescriptorMatch> matches =
-        MatchDescriptors(record.descriptors, n->descriptors, options.match);
     // Point X in the record's camera frame maps to the neighbour's as s R X + t.
     Sim3d n_from_r = n->world_from_cam.Inverse() * record.world_from_cam;
-    if (const std::optional<Sim3d> from_images =
-            RelativePoseFromImages(record, *n, matches, n_from_r, options.min_image_pose_inliers,
-                                   options.image_pose_prior_deg)) {
-      n_from_r = *from_images;
-      ++out.image_poses;
-    } else {
-      ++out.raw_poses;
-    }
+    if (n_from_r.translation.norm() <= 0) continue;  // no baseline
+    const std::vector<DescriptorMatch> matches =
+        MatchDescriptors(record.descriptors, n->descriptors, options.match);
+    const std::optional<Sim3d> from_images =
+        cache != nullptr
+            ? cache->Get(record, *n, matches, n_from_r, options)
+            : RelativePoseFromImages(record, *n, matches, n_from_r, options.min_image_pose_inliers,
+                                     options.image_pose_prior_deg);
+    ++(from_images ? out.image_poses : out.raw_poses);
+    if (from_images) n_from_r = *from_images;
     const Eigen::Matrix3d sr = n_from_r.scale * n_from_r.rotation.toRotationMatrix();
     const Eigen::Matrix3d sr_inv = sr.inverse();  // once per neighbour, not per match
     const Eigen::Vector3d t = n_from_r.translation;
-    if (t.norm() <= 0) continue;  // no baseline
     for (const DescriptorMatch& m : matches) {
       const CompactKeypoint& kr = record.keypoints[m.query];
       const CompactKeypoint& kn = n->keypoints[m.train];

@@ -262,5 +262,41 @@ TEST(RelativePoseFromImages, WrongOrTooFewMatchesKeepTheRawPose) {
   EXPECT_EQ(r.image_poses, 0);
 }
 
+TEST(RelativePoseCache, RefinesEachPairOnceAndGivesTheReverseAsTheInverse) {
+  const Sim3d a_from_b(1.0, ExpSO3(Eigen::Vector3d(0.0, 0.05, 0.0)), Eigen::Vector3d(1, 0, 0));
+  Views v = MakeViews(60, 80, kWorldFromA, a_from_b, a_from_b);
+  v.b.world_from_cam = Drifted(v.b.world_from_cam, 2, 1.0);
+  std::vector<DescriptorMatch> ab, ba;
+  for (int i = 0; i < 80; ++i) {
+    ab.push_back({i, i, 0});
+    ba.push_back({i, i, 0});
+  }
+  const TriangulationOptions options;
+  const Sim3d raw_b_from_a = v.b.world_from_cam.Inverse() * v.a.world_from_cam;
+  const std::optional<Sim3d> direct = RelativePoseFromImages(
+      v.a, v.b, ab, raw_b_from_a, options.min_image_pose_inliers, options.image_pose_prior_deg);
+  ASSERT_TRUE(direct.has_value());
+  RelativePoseCache cache;
+  const std::optional<Sim3d> first = cache.Get(v.a, v.b, ab, raw_b_from_a, options);
+  const std::optional<Sim3d> reverse = cache.Get(v.b, v.a, ba, raw_b_from_a.Inverse(), options);
+  EXPECT_EQ(cache.size(), 1u);
+  ASSERT_TRUE(first.has_value() && reverse.has_value());
+  const Sim3d identity = *reverse * *first;
+  EXPECT_LT(identity.rotation.angularDistance(Eigen::Quaterniond::Identity()), 1e-9);
+  EXPECT_LT(identity.translation.norm(), 1e-9);
+  EXPECT_LT(first->rotation.angularDistance(direct->rotation), 1e-9);
+  EXPECT_LT((first->translation - direct->translation).norm(), 1e-9);
+  // Through the triangulation: the same depths with the cache as without.
+  const TriangulationResult plain = TriangulateFromNeighbours(v.a, {&v.b}, options);
+  const TriangulationResult cached = TriangulateFromNeighbours(v.a, {&v.b}, options, &cache);
+  EXPECT_EQ(cache.size(), 1u);
+  EXPECT_EQ(cached.image_poses, 1);
+  ASSERT_EQ(cached.depths.size(), plain.depths.size());
+  for (size_t i = 0; i < plain.depths.size(); ++i)
+    EXPECT_NEAR(cached.depths[i], plain.depths[i], 1e-5f * std::max(1.0f, plain.depths[i])) << i;
+  cache.Clear();
+  EXPECT_EQ(cache.size(), 0u);
+}
+
 }  // namespace
 }  // namespace sparseloop

@@ -8,9 +8,9 @@
 namespace sparseloop {
 
 enum class DistortionModel {
-  kNone,         // ideal pinhole
+  kNone,              // ideal pinhole
   kRadialTangential,  // OpenCV / EuRoC "radtan": k1 k2 p1 p2 [k3]
-  kEquidistant,  // Kannala-Brandt / EuRoC "equidistant": k1 k2 k3 k4
+  kEquidistant,       // Kannala-Brandt / EuRoC "equidistant": k1 k2 k3 k4
 };
 
 struct CameraIntrinsics {

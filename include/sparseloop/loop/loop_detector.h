@@ -601,10 +601,14 @@ class LoopDetector {
     int image_poses = 0, raw_poses = 0;  // TriangulationResult's counts
   };
   mutable std::optional<QueryPoints> query_points_;
-  // Clears the per-call caches (unpacked_, query_points_) when a new call starts.
+  // The relative poses from the images of this call's local maps and query points (keyed by the
+  // unpacked records' addresses, so cleared with them).
+  mutable RelativePoseCache relative_poses_;
+  // Clears the per-call caches (unpacked_, query_points_, relative_poses_) when a new call starts.
   void ClearCallCaches() const {
     unpacked_.clear();
     query_points_.reset();
+    relative_poses_.Clear();
   }
   void SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const;
   // Options::local_map: PnP of `query` against the map triangulated around records_[match_index].

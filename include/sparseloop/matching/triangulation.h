@@ -7,7 +7,10 @@
 // so the relative rotation and the baseline direction come from the images where they can; the
 // raw poses give the baseline length (the local scale), and the whole relative pose where the
 // images cannot.
+#include <cstdint>
+#include <map>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "sparseloop/features/informative_features.h"
@@ -35,9 +38,10 @@ struct TriangulationOptions {
   void Check() const;
 };
 
-// The raw relative pose's error the image refinement starts from (its first inlier threshold, as
-// an angle): the rotation drift between neighbouring keyframes, a few degrees at most. Degrees.
-inline constexpr double kImagePosePriorErrorDeg = 3.0;
+// The image refinement's first inlier threshold, as an angle: wide enough for the raw relative
+// pose's error (the rotation drift between neighbouring keyframes, a few degrees at most); it then
+// halves down to the 2 px of the verification. Degrees.
+inline constexpr double kImagePoseFirstThresholdDeg = 3.0;
 // A relative rotation from the images that differs from the raw one by more than this is taken
 // for a wrong model (repeated structure), not for drift: drift between neighbouring keyframes is
 // a fraction of a degree per keyframe. Degrees.
@@ -57,6 +61,25 @@ std::optional<Sim3d> RelativePoseFromImages(const KeyframeRecord& a, const Keyfr
                                             const Sim3d& raw_b_from_a, int min_inliers,
                                             double prior_deg, std::vector<int>* inliers = nullptr);
 
+// The relative poses RelativePoseFromImages gave during one pass over overlapping pairs (a local
+// map triangulates each keyframe with its neighbours and places each in the match's frame, so most
+// pairs come up two or three times): each pair is refined once, and its reverse is the inverse.
+// Keyed by the records' addresses: its owner clears it whenever those records may change.
+class RelativePoseCache {
+ public:
+  // RelativePoseFromImages(a, b, matches, raw_b_from_a, the options' min_image_pose_inliers and
+  // image_pose_prior_deg), computed on the first request for {a, b} in either order.
+  std::optional<Sim3d> Get(const KeyframeRecord& a, const KeyframeRecord& b,
+                           const std::vector<DescriptorMatch>& matches, const Sim3d& raw_b_from_a,
+                           const TriangulationOptions& options);
+  void Clear() { second_from_first_.clear(); }
+  size_t size() const { return second_from_first_.size(); }  // pairs refined
+
+ private:
+  // Key (first, second) with first < second (addresses); value second_from_first.
+  std::map<std::pair<uintptr_t, uintptr_t>, std::optional<Sim3d>> second_from_first_;
+};
+
 struct TriangulationResult {
   // One per keypoint of the record: depth along its ray in the record's camera frame (units of
   // its raw pose, as KeyframeRecord::depths), <= 0 where no neighbour gave a valid point.
@@ -70,10 +93,12 @@ struct TriangulationResult {
 // Every keypoint of `record` matched in a neighbour is triangulated (linear midpoint in the
 // record's frame), kept when in front of both cameras, within max_reprojection_px in both and
 // seen with at least min_parallax_deg; over several neighbours the largest parallax wins. The
-// relative pose of each neighbour: RelativePoseFromImages, else the raw one. Needs
-// record.has_pose and each neighbour's has_pose (neighbours without one are skipped).
+// relative pose of each neighbour: RelativePoseFromImages (through `cache` when given), else the
+// raw one. Needs record.has_pose and each neighbour's has_pose (neighbours without one, or at the
+// record's position, are skipped).
 TriangulationResult TriangulateFromNeighbours(const KeyframeRecord& record,
                                               const std::vector<const KeyframeRecord*>& neighbours,
-                                              const TriangulationOptions& options);
+                                              const TriangulationOptions& options,
+                                              RelativePoseCache* cache = nullptr);
 
 }  // namespace sparseloop
