@@ -29,6 +29,23 @@ fs::path OutDir(const std::string& name) {
   return dir;
 }
 
+// `render ARGS --out OutDir(a)` and `render ARGS EXTRA --out OutDir(b)`, both expected to succeed
+// (a comparison of two renders that differ only in EXTRA); returns the two folders.
+std::pair<fs::path, fs::path> RenderTwo(const std::string& a, const std::string& b,
+                                        const std::vector<std::string>& args,
+                                        const std::vector<std::string>& extra) {
+  const std::pair<fs::path, fs::path> dirs{OutDir(a), OutDir(b)};
+  for (const fs::path* out : {&dirs.first, &dirs.second}) {
+    std::vector<std::string> all = {"render"};
+    all.insert(all.end(), args.begin(), args.end());
+    if (out == &dirs.second) all.insert(all.end(), extra.begin(), extra.end());
+    all.insert(all.end(), {"--out", out->string()});
+    const CliResult r = RunCli(all);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+  }
+  return dirs;
+}
+
 std::vector<std::string> ReadLines(const fs::path& path) {
   std::ifstream in(path);
   std::vector<std::string> lines;
@@ -211,16 +228,11 @@ TEST(RenderCli, RotationBiasPerFrameTurnsEveryRawStepAboutItsAxis) {
 // by --drift like it: with the same seed (same noise), each step's rotation error changes by
 // exactly (new - default) * drift * step length / 100 m, and nothing else changes.
 TEST(RenderCli, RotationBiasPer100mReplacesTheHeadingBias) {
-  const auto plain = OutDir("plain");
-  const auto biased = OutDir("biased");
-  for (const auto& out : {plain, biased}) {
-    std::vector<std::string> args = {"render",  "--world", "aerial", "--frames",
-                                     "30",      "--seed",  "6",      "--poses-only",
-                                     "--drift", "3",       "--out",  out.string()};
-    if (out == biased) args.insert(args.end(), {"--rotation-bias", "2,0,-1.5"});
-    const CliResult r = RunCli(args);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-  }
+  const auto [plain, biased] = RenderTwo(
+      "plain", "biased",
+      {"--world", "aerial", "--frames", "30", "--seed", "6", "--poses-only", "--drift", "3"},
+      {"--rotation-bias", "2,0,-1.5"});
+  ASSERT_FALSE(::testing::Test::HasFailure());
   const StepErrors a = ReadStepErrors(plain), b = ReadStepErrors(biased);
   ASSERT_EQ(a.rotation.size(), 29u);
   ASSERT_EQ(b.rotation.size(), 29u);
@@ -240,17 +252,11 @@ TEST(RenderCli, RotationBiasPer100mReplacesTheHeadingBias) {
 // No bias per frame and the default heading bias spelled out: the raw poses of today, byte for
 // byte (the heading drift of every existing render is unchanged).
 TEST(RenderCli, ExplicitDefaultBiasesReproduceTheRawPosesExactly) {
-  const auto plain = OutDir("default_bias");
-  const auto spelled = OutDir("spelled_bias");
-  for (const auto& out : {plain, spelled}) {
-    std::vector<std::string> args = {"render", "--world", "aerial",     "--frames",
-                                     "40",     "--seed",  "3",          "--drift",
-                                     "2",      "--out",   out.string(), "--poses-only"};
-    if (out == spelled)
-      args.insert(args.end(), {"--rotation-bias", "0,0.6,0", "--rotation-bias-per-frame", "0,0,0"});
-    const CliResult r = RunCli(args);
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-  }
+  const auto [plain, spelled] = RenderTwo(
+      "default_bias", "spelled_bias",
+      {"--world", "aerial", "--frames", "40", "--seed", "3", "--drift", "2", "--poses-only"},
+      {"--rotation-bias", "0,0.6,0", "--rotation-bias-per-frame", "0,0,0"});
+  ASSERT_FALSE(::testing::Test::HasFailure());
   const std::string raw = ReadText(plain / "poses_raw.txt");
   EXPECT_FALSE(raw.empty());
   EXPECT_EQ(raw, ReadText(spelled / "poses_raw.txt"));
