@@ -1,5 +1,5 @@
-// The castle ring family under a rotation bias about each camera axis (issue #43;
-// docs/POSEGRAPH.md, "Castle ring family"; `scripts/benchmark --family` puts it into
+// The castle ring family under a rotation bias about each camera axis (docs/POSEGRAPH.md,
+// "Under pitch and roll"; `scripts/benchmark --family` puts it into
 // docs/BENCHMARKS_DRIFT.md):
 // `sparseloop run`'s pipeline (RunPipeline, no depths, the options below) on castle_p30_768's 30
 // views with raw poses drifted from the exact ones (test::DriftCastle: a bias per keyframe about
@@ -10,9 +10,11 @@
 // by default).
 //   build/bin/castle_drift [--data DIR] [--axes pitch,yaw,roll] [--biases 0.2,0.5,1]
 //                          [--scales 1,0.99,1.01] [--seeds 11,12,13] [--config FILE]
-//                          [--set KEY=VALUE]... [--markdown]
+//                          [--set KEY=VALUE]... [--write-trajectories DIR] [--markdown]
 // DIR defaults to $SPARSELOOP_DATA, else the configured SPARSELOOP_DATA_DIR. Exit 0 on success,
-// 2 on a bad argument, missing data or any other error.
+// 2 on a bad argument, missing data or any other error. --write-trajectories DIR also writes each
+// case's raw and GT poses (KITTI rows, DIR/AXIS_BIAS_SCALE_SEED_{raw,gt}.txt) for
+// `posegraph_accuracy --oracle` (exact loops at the ring closure on the same raw poses).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +32,7 @@
 #include "castle_input.h"
 #include "program_main.h"
 #include "sparseloop/eval/metrics.h"
+#include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/config.h"
 #include "sparseloop/pipeline/pipeline.h"
 
@@ -77,12 +80,19 @@ json LoopRow(const Trajectory& gt, const LoopResult& loop, bool accepted) {
 }
 
 json RunCase(const test::CastleRing& castle, int axis, double bias_deg, double scale_step,
-             uint64_t seed, const PipelineOptions& options) {
+             uint64_t seed, const PipelineOptions& options, const fs::path& write_dir) {
   test::CastleDrift spec;
   spec.bias_deg = bias_deg * Eigen::Vector3d::Unit(axis);
   spec.scale_step = scale_step;
   spec.seed = seed;
   const Trajectory raw = test::DriftCastle(castle.gt, spec);
+  if (!write_dir.empty()) {
+    // KITTI rows, raw and GT associated by row (posegraph_accuracy --oracle reads them).
+    const std::string stem =
+        fmt::format("{}_{:g}_{:g}_{}", kAxisNames[axis], bias_deg, scale_step, seed);
+    WriteTrajectory(write_dir / (stem + "_raw.txt"), raw, TrajectoryFormat::kKitti);
+    WriteTrajectory(write_dir / (stem + "_gt.txt"), castle.gt, TrajectoryFormat::kKitti);
+  }
   const PipelineResult result = RunPipeline(castle.dataset, raw, options);
   json loops = json::array();
   for (size_t i = 0; i < result.loops.size(); ++i)
@@ -180,6 +190,7 @@ int Main(int argc, char** argv) {
   std::vector<double> biases = {0.2, 0.5, 1.0}, scales = {1.0, 0.99, 1.01}, seeds = {11, 12, 13};
   PipelineOptions options;
   bool markdown = false;
+  fs::path write_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const bool has_value = i + 1 < argc;
@@ -207,13 +218,16 @@ int Main(int argc, char** argv) {
       const size_t eq = kv.find('=');
       if (eq == std::string::npos) throw std::invalid_argument("--set expects KEY=VALUE");
       ApplyConfigOverride(kv.substr(0, eq), kv.substr(eq + 1), &options);
+    } else if (a == "--write-trajectories" && has_value) {
+      write_dir = argv[++i];
+      fs::create_directories(write_dir);
     } else if (a == "--markdown") {
       markdown = true;
     } else if (a == "--help" || a == "-h") {
       std::printf(
           "usage: castle_drift [--data DIR] [--axes pitch,yaw,roll] [--biases 0.2,0.5,1] "
           "[--scales 1,0.99,1.01] [--seeds 11,12,13] [--config FILE] [--set KEY=VALUE]... "
-          "[--markdown]\n");
+          "[--write-trajectories DIR] [--markdown]\n");
       return 0;
     } else {
       std::fprintf(stderr, "castle_drift: unknown argument '%s' (try --help)\n", a.c_str());
@@ -235,7 +249,8 @@ int Main(int argc, char** argv) {
     for (const double bias : biases) {
       for (const double scale : scales) {
         for (const double seed : seeds) {
-          cases.push_back(RunCase(castle, axis, bias, scale, static_cast<uint64_t>(seed), options));
+          cases.push_back(
+              RunCase(castle, axis, bias, scale, static_cast<uint64_t>(seed), options, write_dir));
           const json& c = cases.back();
           std::cerr << fmt::format(
               "{} {:g} deg x{:g} seed {:g}: {:.3f} -> {:.3f} m ({:.0f} %), {}\n", kAxisNames[axis],
