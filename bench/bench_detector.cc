@@ -26,8 +26,7 @@
 namespace sparseloop {
 namespace {
 
-const std::filesystem::path kKitti =
-    sparseloop::test::DataDir() / "kitti07_first160" / "image_0";
+const std::filesystem::path kKitti = sparseloop::test::DataDir() / "kitti07_first160" / "image_0";
 
 // KITTI 04-12 cam0 (kitti07_first160), from the one table in the synthetic module.
 CameraIntrinsics KittiCamera() { return synthetic::KittiCam0Intrinsics(7); }
@@ -284,16 +283,15 @@ BENCHMARK(BM_QueryStoredKeyframes)
     ->Args({10000, 300})
     ->Unit(benchmark::kMicrosecond);
 
-// The appearance fallback's matching over N stored records (issue #17: <= 2 ms at 10,000 stored
-// keyframes; issue #19: its tail). Arg k: the stored K. At K = 15 (the sparse preset: asymmetric
-// matching) the query keeps its 15 and matches with its whole extraction of 1,000; at K = 300 (the
-// default: symmetric) the query's record is its extraction. Arg variant 0: LoopDetector's default
-// pre-ranking (RankByProbe: a coarse stage on the first 4 stored descriptors of every record, the
-// 200 best scored on their first fallback_fine_features (32) against the query's, the 20 best of
-// those matched in full); 2: the same without the coarse stage (session 18's first version); 1:
-// every record matched in full (the fallback before session 18). Verification is not timed
-// (synthetic records do not verify). The query revisits record N / 2 (its K planted, with noise,
-// in the query's extraction).
+// The appearance fallback's matching over N stored records (target: <= 2 ms at 10,000 stored
+// keyframes, and its tail at small K). Arg k: the stored K. At K = 15 (the sparse preset:
+// asymmetric matching) the query keeps its 15 and matches with its whole extraction of 1,000; at K
+// = 300 (the default: symmetric) the query's record is its extraction. Arg variant 0:
+// LoopDetector's default pre-ranking (RankByProbe: a coarse stage on the first 4 stored descriptors
+// of every record, the 200 best scored on their first fallback_fine_features (32) against the
+// query's, the 20 best of those matched in full); 2: the same without the coarse stage; 1: every
+// record matched in full (no pre-ranking). Verification is not timed (synthetic records do not
+// verify). The query revisits record N / 2 (its K planted, with noise, in the query's extraction).
 void BM_AppearanceFallback(benchmark::State& state) {
   const int64_t n = state.range(0);
   const int64_t variant = state.range(1);

@@ -1,4 +1,4 @@
-// Issue #6 baselines: query time against 1k / 10k / 100k stored keyframes and bytes per keyframe
+// Baselines: query time against 1k / 10k / 100k stored keyframes and bytes per keyframe
 // for (a) sparseloop's store (K = 15 / 300 descriptors per keyframe, brute-force Hamming matching
 // over the candidates of the paper search area), (b) `full-global` (1000 descriptors per
 // keyframe, brute force over every past keyframe) and (c) `full-ann` (1000 descriptors per

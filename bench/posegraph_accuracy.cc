@@ -67,7 +67,7 @@ std::string DriftCaseJson(const test::DriftCase& c, uint64_t seed) {
   const auto r_dirty =
       test::CorrectAndScore(c.raw, c.gt, dirty.loops, PoseGraphOptions{}, c.odometry);
   const auto r_plain = test::CorrectAndScore(c.raw, c.gt, dirty.loops, plain, c.odometry);
-  // The same true loops on the metric vertex types (issue #4: SE(3) for metric input, 4-DoF for
+  // The same true loops on the metric vertex types (SE(3) for metric input, 4-DoF for
   // gravity-aligned VIO): the EuRoC VIO is metric, but its scale is off by a few per cent.
   const auto r_se3 = test::CorrectAndScore(c.raw, c.gt, clean.loops, PoseGraphOptions{}, c.odometry,
                                            VertexType::kSe3);

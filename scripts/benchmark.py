@@ -4,7 +4,7 @@
 Usage (normally through scripts/benchmark, which builds Release first):
   benchmark.py --build BUILD_DIR [--quick | --family] [--out DIR] [--jobs N] [--reuse] [--docs DIR]
 
-Experiments (issue #6): the paper's Table 1 (loop detected +/- and recall at 100% precision for a
+Experiments: the paper's Table 1 (loop detected +/- and recall at 100% precision for a
 sweep of K) on rendered street sequences along KITTI GT trajectories and aerial flights, plus the
 real sets; ablations (search area, feature ranking, extraction area); the full-global and full-ann
 baselines on the same frames; trajectory accuracy (KITTI metric and ATE, raw vs corrected); a

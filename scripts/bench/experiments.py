@@ -30,10 +30,10 @@ def family_renders(r, seqs, family_plan, threads):
 
 
 def family_runs(r, family, runs, sparse=False):
-    """Run tasks of the drift family: today's options, the loop options before session 8 and the
-    search area before session 19, side by side (and with `sparse` the K = 15 preset,
-    bench/configs/sparse_k15.json); their run folders go into `runs`. The pitch / roll rows run
-    today's options (and the preset) only."""
+    """Run tasks of the drift family: today's options, the old loop options (OLD_LOOP_DEFAULTS)
+    and the paper's search area alone (OLD_AREA_DEFAULTS), side by side (and with `sparse` the
+    K = 15 preset, bench/configs/sparse_k15.json); their run folders go into `runs`. The pitch /
+    roll rows run today's options (and the preset) only."""
     tasks = []
     variants = [("new", {}), ("old", OLD_LOOP_DEFAULTS), ("oldarea", OLD_AREA_DEFAULTS)]
     if sparse:
@@ -57,9 +57,9 @@ def collect_metrics(r, runs):
 
 
 def run_family(r):
-    """The drift family alone at its full size (issues #17 / #18 / #43): the street worlds along
-    KITTI 00 / 05 / 06 at x1 / x2 / x4 and the aerial circuit at x1 / x4, four option sets each;
-    each of them with the bias about pitch and about roll at x1 / x4, two option sets each."""
+    """The drift family alone at its full size: the street worlds along KITTI 00 / 05 / 06 at
+    x1 / x2 / x4 and the aerial circuit at x1 / x4, four option sets each; each of them with the
+    bias about pitch and about roll at x1 / x4, two option sets each."""
     full = plan(quick=False)
     family_plan = drift_family(quick=False)
     seqs = {seq: full[seq] for seq, _, _ in family_plan}
@@ -82,7 +82,7 @@ def run_family(r):
 
 
 def castle_family(r):
-    """The castle ring under pitch / yaw / roll bias (issue #43, bench/castle_drift), each option
+    """The castle ring under pitch / yaw / roll bias (bench/castle_drift), each option
     set of CASTLE_DRIFT_VARIANTS; variant -> castle_drift's JSON (or {"missing": why})."""
     args = ["--data", DATA] + (["--seeds", "11", "--biases", "1"] if r.smoke_frames else [])
     with cf.ThreadPoolExecutor(max_workers=r.jobs) as pool:
@@ -188,7 +188,7 @@ def run_all(r, quick):
                                       "detector_accuracy"),
         "posegraph_accuracy": json_exe(r, "posegraph_accuracy", ["--data", DATA],
                                        "posegraph_accuracy"),
-        # K = 15 (the paper's K): the memory budget of issue #7 is per keyframe record + graph.
+        # K = 15 (the paper's K): the soak's memory budget is per keyframe record + graph.
         "soak": json_exe(r, "bench_soak", ["--keyframes", SOAK_KEYFRAMES_QUICK if quick else
                                            100000, "--k", 15, "--out", r.out / "soak.csv"],
                          "soak"),

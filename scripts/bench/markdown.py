@@ -210,7 +210,7 @@ def targets_section(res):
         m = variants.get("sparse_preset")
         if m:
             tail = m["ms_total_p90"] / m["ms_total_median"]
-            rows.append([f"sparse K = 15 preset: Process() p90 <= 2x its median ({seq}, #19)",
+            rows.append([f"sparse K = 15 preset: Process() p90 <= 2x its median ({seq})",
                          f"{fmt(tail, 1)}x (p90 {fmt(m['ms_total_p90'])} / median "
                          f"{fmt(m['ms_total_median'])} ms)", status(tail, tail <= 2.0),
                          "" if tail <= 2.0 else
@@ -234,7 +234,7 @@ def targets_section(res):
         versus = (f"; {fmt(t / full['cpu_ms'], 3)}x matching all of them in full "
                   f"({fmt(full['cpu_ms'])} ms)" if full else "")
         versus += (f"; one-stage pre-ranking {fmt(one['cpu_ms'])} ms" if one else "")
-        rows.append([f"#17: appearance fallback <= 2 ms at 10,000 stored K = {k} keyframes "
+        rows.append([f"appearance fallback <= 2 ms at 10,000 stored K = {k} keyframes "
                      f"(two-stage pre-ranking + {fmt(fallback.get('matched_in_full'), 0)} {how}, "
                      "bench_detector)",
                      f"{fmt(t)} ms{versus}", status(t, t <= 2.0),
@@ -250,7 +250,7 @@ def targets_section(res):
         ratio = (f"; {fmt(t / orb['total_ms'])}x plain cv::ORB (1,000 features, no mask, "
                  f"{fmt(orb['total_ms'])} ms) in the same run" if orb and orb.get("total_ms")
                  else "")
-        rows.append(["#3: Process() median <= 5 ms per 1226x370 KITTI keyframe, one core (default "
+        rows.append(["Process() median <= 5 ms per 1226x370 KITTI keyframe, one core (default "
                      "K = 300, paper search, kitti07_first160 GT poses)",
                      f"{fmt(t)} ms (extract {fmt(proc.get('extract_ms', float('nan')))} ms){ratio}",
                      status(t, t <= 5.0), "" if t <= 5.0 else
@@ -269,7 +269,7 @@ def targets_section(res):
                             f"{fmt(e.get('rotation_error_deg', float('nan')))} deg" +
                             (" (planar alternative)" if e.get("planar_alternative") else "")
                             for e in pairs)
-            rows.append([f"#3: euroc_loop_pairs both verified, rotation < 3 deg "
+            rows.append([f"euroc_loop_pairs both verified, rotation < 3 deg "
                          f"({'monocular' if depths == 'none' else 'stereo depths'})", got,
                          "met" if ok else "**missed**", "" if ok else "docs/DETECTOR.md"])
     for case, label in (("WarmNewLoop", "warm re-solve after one new loop"),
@@ -285,7 +285,7 @@ def targets_section(res):
             if full:
                 got += (f" (every vertex in the solve: {fmt(full['cpu_ms'], 1)} ms, "
                         f"{fmt(full['cpu_ms'] / ms, 1)}x, same run)")
-            rows.append([f"#4: 5,000-keyframe Sim(3) graph, 100 loops, {label}: about a frame or "
+            rows.append([f"5,000-keyframe Sim(3) graph, 100 loops, {label}: about a frame or "
                          "two (<= 100 ms: 2 frames at 20 Hz)", got,
                          status(ms, ok), "" if ok else
                          "sparse Cholesky (CHOLMOD) is most of it, symbolic analysis redone at "
@@ -415,7 +415,8 @@ def accuracy_section(res):
 
 
 def drift_family_targets(res):
-    """Issue #17's targets read off the drift family (default options, `family_new`)."""
+    """The drift family's targets (search area, loop correction, pitch/roll correction) read off
+    its runs with default options (`family_new`)."""
     rows = []
     by_seq = {}
     for seq, d, name in res.get("drift_family", []):
@@ -426,13 +427,13 @@ def drift_family_targets(res):
         top = max(per_drift)
         if top >= 4:
             cov = per_drift[top].get("area_coverage", float("nan"))
-            rows.append([f"#17: GT match in the search area for >= 90 % of GT revisit frames "
+            rows.append([f"search area: holds the GT match for >= 90 % of GT revisit frames "
                          f"({seq}, drift x{top:g}, raw poses)", f"{fmt(cov)}",
                          status(cov, cov >= 0.9), ""])
         if 1 in per_drift and top > 1:
             r1 = per_drift[1]["recall_100p_accepted"]
             rt = per_drift[top]["recall_100p_accepted"]
-            rows.append([f"#17: recall@100%P at drift x{top:g} >= 0.8 x at x1 ({seq})",
+            rows.append([f"search area: recall@100%P at drift x{top:g} >= 0.8 x at x1 ({seq})",
                          f"{fmt(rt)} vs {fmt(r1)} (x{fmt(rt / r1) if r1 > 0 else 'n/a'})",
                          status(rt, rt >= 0.8 * r1), ""])
     for seq, d, name in res.get("drift_family", []):
@@ -440,19 +441,20 @@ def drift_family_targets(res):
         if not m or m["raw_ate_m"] <= 0 or m["events"] == 0 or m["recall_100p_accepted"] <= 0:
             continue  # the targets hold where loops exist
         ratio = m["corrected_ate_m"] / m["raw_ate_m"]
-        issue = "#43" if " " in seq else "#18"  # "SEQ pitch" / "SEQ roll": issue #43's rows
-        rows.append([f"{issue}: corrected ATE <= 30 % of raw ({seq}, drift x{d:g})",
+        # "SEQ pitch" / "SEQ roll": the bias about another camera axis than the heading
+        topic = "pitch/roll correction" if " " in seq else "correction"
+        rows.append([f"{topic}: corrected ATE <= 30 % of raw ({seq}, drift x{d:g})",
                      f"{100 * ratio:.0f} % ({fmt(m['corrected_ate_m'])} / {fmt(m['raw_ate_m'])} m)",
                      status(ratio, ratio <= 0.30), ""])
         if seq.startswith("street"):
             t = m["corrected_t_err_pct"]
-            rows.append([f"#18: KITTI t_err <= 1 % where loops exist ({seq}, drift x{d:g})",
+            rows.append([f"{topic}: KITTI t_err <= 1 % where loops exist ({seq}, drift x{d:g})",
                          f"{fmt(t)} % (raw {fmt(m['raw_t_err_pct'])} %)", status(t, t <= 1.0),
                          "" if t <= 1.0 else "docs/POSEGRAPH.md, street renders"])
     circuit = res["metrics"].get("aerial_circuit", {}).get("kdefault")
     if circuit:
         r = circuit["recall_100p_accepted"]
-        rows.append(["#17: aerial circuit recall@100%P >= 0.95, raw poses, default search",
+        rows.append(["search area: aerial circuit recall@100%P >= 0.95, raw poses, default search",
                      fmt(r), status(r, r >= 0.95), ""])
     return rows
 
@@ -460,7 +462,8 @@ def drift_family_targets(res):
 def drift_family_section(res):
     rows = []
     for seq, d, name in res.get("drift_family", []):
-        labels = {"old": "old loop options", "oldarea": "paper area only (before session 19)",
+        labels = {"old": "old loop options",
+                  "oldarea": "paper area only (no uncertainty area, fallback or gate)",
                   "new": "today", "sparse": "K = 15 preset (sparse_k15.json)"}
         for variant in ("old", "oldarea", "new", "sparse"):
             m = res["metrics"].get(name, {}).get(f"family_{variant}")
@@ -495,7 +498,7 @@ def castle_cases(res):
 
 
 def castle_family_targets(res):
-    """Issue #43's castle target per axis and option set: corrected <= 40 % of raw ATE in every
+    """The castle ring's target per axis and option set: corrected <= 40 % of raw ATE in every
     case (rotation bias 0.2-1 deg per keyframe, alone and with scale drift, 3 seeds)."""
     rows = []
     for _, label, groups in castle_cases(res):
@@ -504,12 +507,14 @@ def castle_family_targets(res):
             if not ratios:
                 continue
             met = sum(1 for x in ratios if x <= 0.4)
-            rows.append([f"#43: castle ring corrected ATE <= 40 % of raw, every case ({axis} "
+            rows.append([f"castle ring: corrected ATE <= 40 % of raw, every case ({axis} "
                          f"bias, {label})", f"{met} of {len(ratios)} cases; worst "
                          f"{100 * max(ratios):.0f} %, median "
                          f"{100 * sorted(ratios)[len(ratios) // 2]:.0f} %",
                          status(max(ratios), met == len(ratios)),
-                         "" if met == len(ratios) else "issue #43 parts 1-2 (loop pose)"])
+                         "" if met == len(ratios) else
+                         "one loop at the ring closure (an exact loop does no better; "
+                         "docs/POSEGRAPH.md)"])
     return rows
 
 
@@ -682,7 +687,7 @@ def soak_md(soak):
     full = soak.get("keyframes", 0) >= 100000
     verdict = ("met" if slope <= 2048 else "missed") if full else "not judged in quick mode"
     return ("Synthetic nadir flight (`bench_soak`, docs/ROBUSTNESS.md), detector + background "
-            "optimiser. Target (issue #7): RSS growth <= 2 KiB per keyframe beyond the fixed "
+            "optimiser. Target: RSS growth <= 2 KiB per keyframe beyond the fixed "
             f"overhead, over 100,000 keyframes: **{verdict}**; measured "
             f"{fmt(slope, 0)} B/keyframe over the second half of {soak.get('keyframes')} "
             "keyframes" + ("" if full else " (the 100,000-keyframe runs: the full mode, and the "

@@ -34,11 +34,11 @@ def plan(quick):
 
 SOAK_KEYFRAMES_QUICK = 5000
 
-# Loop-correction drift family (issue #18): each sequence fully re-rendered per drift scale (the
-# mapped pixels' depths are in the raw trajectory's units, so a poses-only drift would hand the
-# detector depths of another scale), run with today's defaults and with the loop options before
-# session 8 in the same benchmark run (the gate's path and prior along the loop graph are code,
-# not options: both variants have them).
+# Loop-correction drift family: each sequence fully re-rendered per drift scale (the mapped
+# pixels' depths are in the raw trajectory's units, so a poses-only drift would hand the detector
+# depths of another scale), run with today's defaults and with the earlier loop options below in
+# the same benchmark run (the gate's path and prior along the loop graph are code, not options:
+# both variants have them).
 OLD_LOOP_DEFAULTS = {
     # Fixed loop sigmas (0.5 raw steps, 0.01 rad, 0.05, weight = score), odometry 2 % / 0.002 rad
     # / 0.002 per step, rotation gate 0.1 deg per keyframe. The old gate counted keyframes since
@@ -49,19 +49,19 @@ OLD_LOOP_DEFAULTS = {
 }
 
 
-# The search area before session 19 (issue #17): the paper's wedge alone on the raw poses, no
-# uncertainty area, no appearance fallback (default since session 21) and no revisit-distance gate
-# (which only the wide area needs).
+# The paper's search area alone: the paper's wedge on the raw poses, no uncertainty area, no
+# appearance fallback (on by default) and no revisit-distance gate (which only the wide area
+# needs).
 OLD_AREA_DEFAULTS = {"detector": {"search": {"drift_rate": 0.0}, "max_loop_distance_steps": 0.0,
                                   "appearance_fallback": False}}
 
 
-# Rotation drift about the other camera axes (issue #43): the default bias of 0.6 deg per 100 m
+# Rotation drift about the other camera axes: the default bias of 0.6 deg per 100 m
 # about camera x (pitch) or z (roll) instead of y (heading), `render --rotation-bias P,Y,R`.
 ROTATION_BIAS_AXES = {"pitch": "0.6,0,0", "roll": "0,0,0.6"}
 
 
-# Issue #43: the castle ring (30 real images, exact poses, no depths) under a rotation bias per
+# The castle ring (30 real images, exact poses, no depths) under a rotation bias per
 # keyframe about each camera axis, alone and with scale drift, 3 seeds (bench/castle_drift's
 # default grid: 0.2 / 0.5 / 1 deg x scale 1 / 0.99 / 1.01 x seeds 11-13), with today's options
 # (K = 300) and the K = 15 preset. (variant, label, castle_drift arguments).
@@ -105,11 +105,11 @@ def ablation_variants():
     }
 
 
-# Issue #19: K = 15 stored per keyframe, the ways to make it recall (docs/DETECTOR.md, "Sparse
+# Sparse K = 15: K = 15 stored per keyframe, the ways to make it recall (docs/DETECTOR.md, "Sparse
 # K = 15"), beside the symmetric K = 15 of the paper and the default. name -> (label, detector).
 def sparse_variants():
-    # The ingredients alone: without the appearance fallback (on by default since session 21),
-    # which the preset adds.
+    # The ingredients alone: without the appearance fallback (on by default), which the preset
+    # adds.
     k15 = {"features": {"max_features": 15}, "appearance_fallback": False}
     return {
         "sparse_sym": ("K = 15 symmetric (the paper)", k15),
@@ -127,8 +127,9 @@ def sparse_variants():
 ABLATION_LABELS = {
     "default": "default (paper search + uncertainty area + appearance fallback, response ranking, "
                "mapped pixels)",
-    "search_paper_only": "paper area only (before session 19)",
-    "search_no_fallback": "default without the appearance fallback (before session 21)",
+    "search_paper_only": "paper area only (no uncertainty area, fallback or gate)",
+    "search_no_fallback": "default without the appearance fallback (paper search + uncertainty "
+                          "area)",
     "search_paper_drift": "paper + drift tolerance 5 % (no uncertainty area, no fallback)",
     "search_radius": "radius 20 (raw units)",
     "search_global": "global (every past keyframe)",

@@ -39,7 +39,7 @@ def score_loops(sparseloop, run_dir, seq_dir, world):
         e = json.loads(out.read_text())
     area = e.get("search_area", {})
     return {
-        # GT loop queries whose GT match was among the search area's candidates (issue #17)
+        # GT loop queries whose GT match was among the search area's candidates
         "area_coverage": num(area.get("coverage")),
         "area_mean_candidates": num(area.get("mean_candidates")),
         "gt_queries": e["loops"]["num_gt_queries"],

@@ -91,7 +91,7 @@ int RunDetect(int argc, char** argv) {
   const Dataset dataset = OpenDatasetFromFlags(flags);
   SL_CHECK_MSG(!dataset.frames.empty(), "dataset '{}' has no frames", flags.dataset);
   // Raw poses come only from --poses or a rosbag: pose topic: a dataset's own ground truth (KITTI
-  // poses.txt, a render's poses.txt) is never searched with as if a vSLAM had produced it (#21).
+  // poses.txt, a render's poses.txt) is never searched with as if a vSLAM had produced it.
   const std::optional<Trajectory> raw =
       RawPosesForFrames(flags.poses, dataset, options.raw_association_max_dt);
   const bool have_poses = raw.has_value();

@@ -1,7 +1,7 @@
 #pragma once
 // Private to sparseloop::features. cv::resize(src, dst, size, 0, 0, cv::INTER_LINEAR_EXACT) for
 // 8-bit single-channel images, bit-identical to OpenCV 4.x's fixed-point implementation
-// (docs/DETECTOR.md, "Session 7: the pyramid resizes"), for the ORB pyramids:
+// (docs/DETECTOR.md, "The pyramid resizes"), for the ORB pyramids:
 // - OpenCV recomputes the tap offsets and 8-bit coefficients of every output column and row with
 //   software floating point (cv::softdouble) at every call; here they are computed once per
 //   (source size, output size) with IEEE double arithmetic (the same correctly rounded

@@ -306,7 +306,7 @@ int VerifyCount(const LoopDetector::Options& o,
   // Not in the small-K regime (the floors lowered below min_matches): there the match counts
   // are small integers, most candidates are "close", and verifying up to max_verify_close of
   // them let two false weak pairs through on aerial_circuit (K = 15 preset: corrected ATE 4.0 ->
-  // 22 m; session 21).
+  // 22 m).
   const bool small_k = o.EffectiveMinMatches() < o.min_matches;
   if (o.verify_close_fraction <= 0 || n == 0 || small_k) return n;
   // The next candidates while their match count is near the max_verify-th's.

@@ -20,7 +20,7 @@ namespace {
 // each pose scored by the points in front of the camera that reproject within `threshold`
 // (normalised image units); the pose with the most inliers wins (the first on ties). Seeded.
 // A 3-point sample needs far fewer iterations than EPnP's 5 at few matches (15 matches, floor 6:
-// 154 against 1000): what makes a failing pair cheap (the verification tail of #19).
+// 154 against 1000): what makes a failing pair cheap (the K = 15 preset's verification tail).
 bool RansacP3P(const std::vector<cv::Point3f>& object, const std::vector<cv::Point2f>& image,
                double threshold, int iterations, uint64_t seed, cv::Mat* rvec, cv::Mat* tvec,
                std::vector<int>* inliers) {

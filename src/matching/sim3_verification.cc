@@ -29,7 +29,8 @@ void VerifySim3(const KeyframeRecord& query, const KeyframeRecord& match,
   constexpr int kSim3Sample = 3;  // RansacSim3's minimal sample
   so.max_error = threshold;
   // Stop once a passing model would have been found (as essential and PnP RANSAC do): failing
-  // pairs ran all max_iterations, the verification tail of #19 on renders with depths.
+  // pairs ran all max_iterations, the K = 15 preset's verification tail on renders with
+  // depths.
   so.max_iterations = IterationsToFindPassingModel(options, src.size(), kSim3Sample);
   so.min_inliers = options.min_inliers;
   so.seed = options.seed;

@@ -75,7 +75,8 @@ void VerifyEssential(const TwoViewData& data, size_t num_matches, const VerifyOp
 // (options.min_inliers, min_inlier_ratio) has been found with probability options.confidence, if
 // one exists: the chance that a sample of `sample_size` of the `num_matches` points is all
 // inliers of it is prod_i (m - i) / (n - i). A weaker model fails anyway, so searching longer
-// for one only costs time (false pairs ran all max_iterations: the verification tail of #19).
+// for one only costs time (false pairs ran all max_iterations: the K = 15 preset's verification
+// tail).
 // At least 100 (noisy minimal samples at few matches) and at most options.max_iterations.
 int IterationsToFindPassingModel(const VerifyOptions& options, size_t num_matches, int sample_size);
 

@@ -257,7 +257,7 @@ void TakeSolve(const LoopClosing& closing, const std::vector<int64_t>& loop_inde
   }
 }
 
-// The one offline driver (#21): `run` (optimize) and `detect` (not) over one LoopClosing.
+// The one offline driver: `run` (optimize) and `detect` (not) over one LoopClosing.
 PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
                           const StepCovariances& step_covariances, const PipelineOptions& options,
                           bool optimize, const PipelineProgressCallback& progress) {

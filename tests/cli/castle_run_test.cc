@@ -121,7 +121,7 @@ TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
   double k[4] = {0, 0, 0, 0};
   const std::vector<Sim3d> gt = LoadCastleGt(root, k);
   // 0.3 deg yaw and 0.5 % scale per step (8.7 deg and 15 % at the end of the ring), and 1 deg /
-  // 1 % per step (29 deg, 34 %; until session 24 documented as a known gap: no loop at all).
+  // 1 % per step (29 deg, 34 %; formerly documented as a known gap: no loop at all).
   struct DriftLevel {
     double yaw_deg, log_scale;
     const char* name;
@@ -152,9 +152,9 @@ TEST(CliRunCastle, DriftedRingIsClosedAndAteDrops) {
               "query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,"
               "qy,qz,qw,tx,ty,tz,scale,match_session,query_image,match_image,method,"
               "local_poses_from_images,local_poses_raw");
-    // Reached (session 24): 1.107 -> 0.247 m (22 %) and 2.967 -> 0.531 m (18 %), one metric loop
-    // 29 -> 02 (local-map PnP) each; session 5 reached 89 % at the smaller drift (the odometry
-    // model was stiffer than this drift until the weight rounds of session 22).
+    // Reached: 1.107 -> 0.247 m (22 %) and 2.967 -> 0.531 m (18 %), one metric loop 29 -> 02
+    // (local-map PnP) each; an earlier version reached 89 % at the smaller drift (its odometry
+    // model was stiffer than this drift, before the loop weight rounds).
     EXPECT_LT(corrected_ate, 0.4 * raw_ate);
   }
 }
@@ -208,7 +208,7 @@ TEST(CliRunCastle, SparsePresetClosesTheRingOnItsOwnDepths) {
               << run.loops_csv;
     EXPECT_TRUE(HasRingClosure(run.loops_csv)) << run.loops_csv;
     EXPECT_GE(run.summary["accepted_loops"].get<int>(), 1);
-    // Measured (session 27 prototype): 1.107 -> 0.393 m (36 %), 2.967 -> 0.488 m (16 %).
+    // Measured (prototype): 1.107 -> 0.393 m (36 %), 2.967 -> 0.488 m (16 %).
     EXPECT_LT(corrected_ate, 0.4 * raw_ate);
   }
 }

@@ -145,7 +145,7 @@ TEST(CliDetect, SmallKChangesBytesPerKeyframe) {
 }
 
 // A rendered folder holds poses.txt (its ground truth). Without --poses, `detect` must not search
-// with it as if a vSLAM had estimated it (#21): no raw poses, the global search, said on stderr.
+// with it as if a vSLAM had estimated it: no raw poses, the global search, said on stderr.
 TEST(CliDetect, FolderGroundTruthIsNeverUsedAsRawPoses) {
   const std::filesystem::path& seq = RenderedLoopSequence();
   ASSERT_FALSE(seq.empty());

@@ -1,4 +1,4 @@
-// What a new user hit (issue 45; docs/ROBUSTNESS.md, bad-input table): no command writes over
+// What a new user hit (docs/ROBUSTNESS.md, bad-input table): no command writes over
 // one of its inputs, output paths are resolved and checked before any work, text files as editors
 // write them, numbers at the edges and library text never reaching the user. Each case exits 2
 // naming the flag, the file (and line) the user gave, or gives the right result.

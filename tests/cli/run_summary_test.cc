@@ -339,7 +339,7 @@ TEST(CliRunSummary, GtRevisitsNeedPathBetweenTheFrames) {
             2);
 }
 
-// bench/configs/sparse_k15.json (issue #19, docs/DETECTOR.md "Sparse K = 15"): K = 15 records
+// bench/configs/sparse_k15.json (docs/DETECTOR.md "Sparse K = 15"): K = 15 records
 // (about 1/16 of the default's bytes), and on the rendered circuit at least the correct loops the
 // paper's symmetric K = 15 finds, no false one; summary.json counts the loops per source. Correct
 // = GT distance < 35 m, the aerial rule of docs/BENCHMARKS.md: the nadir views of neighbouring

@@ -1,4 +1,4 @@
-// The detector on real data with ONE default parameter set (issue 3 acceptance checks).
+// The detector on real data with ONE default parameter set (the acceptance checks).
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -72,11 +72,11 @@ TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
       rot_err, dir_err, loop.match_from_query.translation.norm(), gt.translation.norm(),
       centre_err);
   EXPECT_LT(rot_err, 1.0);
-  EXPECT_LT(dir_err, 5.0);  // the issue's target (two-view only: 18.5 deg, docs/DETECTOR.md)
+  EXPECT_LT(dir_err, 5.0);  // the target (two-view only: 18.5 deg, docs/DETECTOR.md)
   EXPECT_LT(centre_err, 0.05 * gt.translation.norm() + 0.05);
 }
 
-// Options::stored_depths_window (issue #19; docs/DETECTOR.md "Stored depths from the detector's
+// Options::stored_depths_window (docs/DETECTOR.md "Stored depths from the detector's
 // own triangulation"): the K = 15 preset (bench/configs/sparse_k15.json) without vSLAM depths,
 // its stored 15 triangulated against the neighbours' whole extractions (GT poses as raw poses):
 // nearly every keyframe stores depths, some only once the keyframes after it arrived
@@ -143,11 +143,11 @@ TEST(LoopDetectorReal, CastleSmallKOnItsOwnDepths) {
   }
 }
 
-// The two-view estimate alone (local map off): the issue's rotation target holds, the direction
+// The two-view estimate alone (local map off): the rotation target holds, the direction
 // one does not (a 0.8 m baseline to 29 -> 01 against a facade 10-20 m away; the Huber-Sampson
 // optimum of its K = 300 inliers is itself 18 deg from the GT). Kept as the measured baseline of
 // what the local map buys.
-// The observation behind small K (issue #3): with 50 response-ranked features per view the true
+// The observation behind small K: with 50 response-ranked features per view the true
 // loop 29-01 has clearly more essential-matrix inliers than the false pairs 29-15 and 20-05
 // (about 23 vs <= 8; every ranking and K: bench/detector_accuracy, castle_pairs).
 TEST(LoopDetectorReal, CastleTrueLoopOutscoresFalsePairsAtK50) {
@@ -260,7 +260,7 @@ TEST_F(KittiNoLoop, ZeroLoopsWithDriftedPoses) {
   EXPECT_EQ(CountLoops(poses), 0);
 }
 
-// Without poses (issue #17): the keyframes that still share the scene with the query along the
+// Without poses: the keyframes that still share the scene with the query along the
 // recent path are not loops. With the fixed exclude_recent alone the same drive gave 107 false
 // loops (the road 11-25 keyframes back); the overlap walk (Options::overlap_gap) leaves 4, all at
 // the inlier floor (24-25 of 300: 36 -> 24, 55 -> 38, 109 -> 61, 155 -> 135); the continuity
@@ -270,7 +270,7 @@ TEST_F(KittiNoLoop, NearTimeLoopsWithoutPosesAreExcluded) {
   EXPECT_EQ(CountLoops({}), 0);
 }
 
-// The same drive at a small K (issue #19: K = 15 / 20 asymmetric, weak pairs, no poses). A
+// The same drive at a small K (K = 15 / 20 asymmetric, weak pairs, no poses). A
 // stored record of 15-20 features cannot reach the walk's floor (3 x 8 matches), so without the
 // buffer of recent extractions (Options::overlap_features) the walk ends at once and the road
 // 11-19 keyframes ahead comes back as loops (4 / 7 without weak pairs, 11 / 16 with them:
@@ -321,7 +321,7 @@ TEST(LoopDetectorReal, EurocPair23PassesGeometricVerification) {
 
 // Both pairs with the stereo depths a stereo vSLAM maps (the pairs come from Kimera-VIO's
 // loop-closure test, a stereo VIO): verified from 3D (Sim(3) 3D-3D, or PnP when that does not
-// verify), rotation < 3 deg from the GT (the issue's bound) and translation within 15 cm.
+// verify), rotation < 3 deg from the GT (the target's bound) and translation within 15 cm.
 // Reached at K = 300: (0,1) 2.27 deg / 0.11 m, (2,3) 0.65 deg / 0.05 m. Pair (2,3) is the one
 // monocular two-view geometry gets wrong (next test); with depths it is the accurate one.
 TEST(LoopDetectorReal, EurocPairsWithStereoDepthsVerifiedAndAccurate) {

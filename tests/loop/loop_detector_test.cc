@@ -180,7 +180,7 @@ TEST(LoopDetector, RevisitDetectedUnrelatedNot) {
   EXPECT_THROW(detector.record(99), std::invalid_argument);
 }
 
-// Asymmetric matching (issue #19): the stored record is the same K as without it (same bytes,
+// Asymmetric matching: the stored record is the same K as without it (same bytes,
 // same descriptors), while the query matches with its whole extraction. A revisit whose query
 // view holds new, stronger corners (here: high-contrast blobs painted over a third of it) keeps
 // few of the stored K among its own strongest K: K x K misses it, K x all finds it.
@@ -276,7 +276,7 @@ TEST(LoopDetector, StoredDepthsBufferIsBoundedAndCleared) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
-// Repeatability ranking (issue #19): a keyframe stores first the features the keyframe before
+// Repeatability ranking: a keyframe stores first the features the keyframe before
 // re-finds. Keyframe 1 is keyframe 0 moved a little plus transient high-contrast blobs (strong
 // corners that no other keyframe sees): ranked by response its K are mostly blob corners, ranked
 // by repeatability they are structure keyframe 0 also saw, and keyframe 2 (the same place again,
@@ -321,7 +321,7 @@ TEST(LoopDetector, RepeatabilityRankingStoresWhatTheKeyframeBeforeSaw) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
-// Weak pairs (issue #19, item 3): with the inlier floor at K (so every real pair here is weak),
+// Weak pairs: with the inlier floor at K (so every real pair here is weak),
 // the first keyframe of a revisit is verified but unconfirmed (kRejectedByTemporal), the second,
 // whose match is next to the first's, is confirmed by it and detected; an isolated weak pair is
 // never detected. Without weak pairs neither is detected (too few matches for the K floor).
@@ -365,7 +365,7 @@ TEST(LoopDetector, WeakPairsNeedTheAgreementOfTheKeyframeBefore) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
-// Appearance fallback (issue #17): the drifted raw pose puts the revisit far from its first visit,
+// Appearance fallback: the drifted raw pose puts the revisit far from its first visit,
 // so the search area (a radius here) holds no candidate; the fallback ranks every stored keyframe
 // and finds the same loop as a global (brute-force) search does, reported as kAppearance.
 TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
@@ -449,7 +449,7 @@ TEST(LoopDetector, AppearanceFallbackPreRankingKeepsTheLoopOfTheFullFallback) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
-// Raw pose resets (issue #17, bad input): a vSLAM that re-initialises continues in another world
+// Raw pose resets (bad input): a vSLAM that re-initialises continues in another world
 // frame. The place of keyframe 1 is seen again by the last keyframe; keyframes 10.. are in a new
 // segment, flagged by the caller or noticed as a jump. The search area then holds only the new
 // segment, and the earlier one is searched by appearance: the revisit is a relocalisation into it.

@@ -89,7 +89,7 @@ TEST(RtabmapCorridor, PrecisionAndRecallOverK) {
   EXPECT_GE(best_recall, 0.9);
 }
 
-// Issue #19 at K = 15 without poses (no gate, no search area: the hardest case for a small K):
+// Sparse K = 15 without poses (no gate, no search area: the hardest case for a small K):
 // asymmetric matching, repeatability ranking and weak pairs confirmed by the keyframe before,
 // one at a time and together, beside the symmetric K = 15 of the paper (numbers in
 // docs/DETECTOR.md, "Sparse K = 15"). Asymmetric matching alone keeps precision 1 and doubles
@@ -131,10 +131,10 @@ TEST(RtabmapCorridor, SparseK15Variants) {
   EXPECT_GT(got["weak"].recall_at_full_precision, got["symmetric"].recall_at_full_precision);
 }
 
-// Issue #19 without poses at K = 20 (asymmetric matching, weak pairs with agreement; session 27):
+// Small K without poses, at K = 20 (asymmetric matching, weak pairs with agreement):
 // every candidate verified and the most inliers kept (Options::best_of_verified; the first
 // passing one was 47 -> 10, 9 inliers, where 47 -> 9 has 10: the GT has 47 -> 5..9). The
-// recall@100%P target of the issue is 0.88; the single-pair oracle at K = 20 is 0.909
+// recall@100%P target is 0.88; the single-pair oracle at K = 20 is 0.909
 // (docs/DETECTOR.md, "The corridor at K = 15-20 without poses").
 TEST(RtabmapCorridor, SmallKWithoutPoses) {
   SL_REQUIRE_DATA("rtabmap_corridor_loop");

@@ -1,4 +1,4 @@
-// The street world along KITTI 00 (issue 5): frames at the same place on different visits match
+// The street world along KITTI 00: frames at the same place on different visits match
 // under the detector, frames at different places do not verify. Revisit pairs come from the
 // published loop GT (z014xw); the unrelated frame is > 100 m away in GT.
 #include <gtest/gtest.h>

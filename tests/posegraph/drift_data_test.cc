@@ -12,7 +12,7 @@
 namespace sparseloop {
 namespace {
 
-// Corrected / raw Sim(3)-aligned ATE reached with the default options. The targets are
+// Corrected / raw Sim(3)-aligned ATE reached with the default options. The targets are
 // 0.30 (true loops) and 0.40 (20 % false loops). Where a sequence cannot reach them the bound is
 // what is reached (+ ~5 points), and the test below checks the reason: the same ratio with
 // noise-free loops, i.e. the loops' noise is not what limits it.

@@ -206,7 +206,7 @@ TEST(PoseGraph, WeightRoundsSatisfyKeptLoopsWhenOdometryClaimsTooMuch) {
 // loop_weight_quantile: which kept loop decides the rounds. Three loops measured 2 m off with 100x
 // their information among 99 (no PCM, so all are kept): one of them is left inconsistent by the
 // solve. With the median deciding there is one solve and the loop is reported; with the worst
-// deciding (1, the rule before session 23) every loop is weighted up for it.
+// deciding (1, the former rule) every loop is weighted up for it.
 TEST(PoseGraph, WeightRoundsFollowTheQuantileNotTheWorstLoop) {
   const Synthetic s = MakeSynthetic(150, 2.3, 1);
   auto rng = test::SeededRng(5);

@@ -101,7 +101,7 @@ KeyframeInput BlankKeyframe(int64_t id, std::optional<Sim3d> pose) {
 
 Sim3d PoseAt(double x) { return Sim3d(1.0, Eigen::Quaterniond::Identity(), {x, 0.0, 0.0}); }
 
-// The batch graph `run` built before it became a driver of LoopClosing (#21): every keyframe's
+// The batch graph `run` built before it became a driver of LoopClosing: every keyframe's
 // raw pose, odometry edges in order, then every loop edge, solved once. The reference for the
 // graph that LoopClosing's background optimiser grows one keyframe at a time.
 PoseGraphSummary SolveBatchGraph(const Sequence& s, const std::vector<LoopResult>& loops,
@@ -467,7 +467,7 @@ TEST(LoopClosing, CallerOdometryCovarianceDecidesHowFarLoopsPull) {
   EXPECT_GT(tight, 2.0 * loose) << "raw " << raw_ate << " loose " << loose << " tight " << tight;
 }
 
-// A vSLAM that re-initialises on the second lap (issue #17, bad input): from keyframe 40 on the
+// A vSLAM that re-initialises on the second lap (bad input): from keyframe 40 on the
 // raw poses are in another world frame (500 m away, turned by 1 rad). Flagged by the caller, or
 // noticed as a jump, the detector starts a pose segment: the second lap relocalises into the first
 // by appearance (CandidateSource::kEarlierSegment, world_from_query in the first lap's frame, as

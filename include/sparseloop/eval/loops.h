@@ -141,7 +141,7 @@ struct GtDistanceScore {
   size_t events_detected = 0;  // with an accepted correct detection
 };
 
-// Search-area coverage (issue #17): for each GT query frame that has a row in `areas` (frame ->
+// Search-area coverage: for each GT query frame that has a row in `areas` (frame ->
 // the stored keyframe ids its search area held, after the detector's filters), whether one of its
 // GT matches (a GT pair (query, m)) is among them: the loop the images could verify was at least
 // compared. fraction = covered / queries (nullopt without queries); mean_candidates over them.

@@ -77,7 +77,7 @@ const char* ToString(CandidateRetrieval retrieval);
 // "brute_force" | "ann"; throws std::invalid_argument otherwise.
 CandidateRetrieval ParseCandidateRetrieval(const std::string& name);
 
-// Where the loop's candidate came from (issue #17).
+// Where the loop's candidate came from.
 enum class CandidateSource {
   kSearchArea,  // the search area on the raw trajectory (the paper's wedge, or global search)
   kAppearance,  // the appearance fallback over every stored keyframe (Options::appearance_fallback)
@@ -185,7 +185,7 @@ class LoopDetector {
     SearchAreaOptions search = DefaultSearch();  // search area on the raw trajectory
     MatchOptions match;                          // Hamming matching
     VerifyOptions verify;                        // geometric verification (seed inside)
-    // Asymmetric matching (issue #19): a stored record keeps its K features (memory per
+    // Asymmetric matching: a stored record keeps its K features (memory per
     // keyframe), but the keyframe being checked is matched with its whole ranked extraction, up
     // to query_max_features (ORB extracts them anyway; only what is stored must be small). Every
     // stored descriptor then finds its best match among the query's many (the ratio test on that
@@ -195,7 +195,7 @@ class LoopDetector {
     // values are clamped to orb_candidates; smaller than K means K).
     bool asymmetric_matching = false;
     int query_max_features = 1000;
-    // Keep the K that will be seen again (issue #19). The paper keeps features at mapped points,
+    // Keep the K that will be seen again. The paper keeps features at mapped points,
     // points the vSLAM saw in several keyframes. Measured here: a keyframe's features are ranked
     // first by how many of the previous repeatability_window keyframes re-find them (a mutual,
     // ratio-tested descriptor match against those keyframes' whole extraction, up to
@@ -215,11 +215,11 @@ class LoopDetector {
     // the place). Costs up to max_verify - 1 verifications per loop without a pose
     // (rtabmap corridor, K = 20: 47 -> 10 with 9 inliers was kept before 47 -> 9 with 10).
     bool best_of_verified = true;
-    // Close scores (issue #17, item 3): beyond max_verify, the next candidates are verified too
+    // Close scores: beyond max_verify, the next candidates are verified too
     // while their descriptor match count is at least verify_close_fraction x the max_verify-th
     // candidate's, up to max_verify_close in all (stopping at the first loop, as always). Under
     // drift the true match need not rank in the top three by matches when several places look
-    // alike. Measured (session 19, K = 300, raw poses): street00 x1 recall@100%P 0.83 -> 0.90
+    // alike. Measured (K = 300, raw poses): street00 x1 recall@100%P 0.83 -> 0.90
     // (0.8, 8), street00 x4, street05 x1 / x4, street07, the aerial renders unchanged, zero false
     // loops accepted in each (docs/SEARCH_AREA.md). Not below K = 30, where the small-K floors
     // apply: match counts of 6-15 make most candidates "close" (K = 15 preset, aerial_circuit:
@@ -328,8 +328,7 @@ class LoopDetector {
     // planar) has alternatives 5.4 / 7.4 deg from the GT prior (tolerance 12.8 -> 5.1 deg, both
     // rejected), EuRoC pair (2,3) one 2.4 deg off (10.1 -> 4.0 deg, accepted). In (0, 1].
     double planar_alternative_tolerance = 0.4;
-    // Weak pairs (issue #19, item 3), when weak_pairs: a pair verified with at least
-    // weak_min_inliers inliers but
+    // Weak pairs, when weak_pairs: a pair verified with at least weak_min_inliers inliers but
     // fewer than the inlier floor (EffectiveMinInliers) is a loop only when one of the previous
     // agreement_window keyframes verified a pair on the same place that passed the rotation
     // gate (weak or not): its match within agreement_window + (their query distance) keyframes
@@ -349,49 +348,48 @@ class LoopDetector {
     // min_path_ratio) allow, and the ann.max_candidates top-voted go to matching + verification.
     CandidateRetrieval retrieval = CandidateRetrieval::kBruteForce;
     BinaryAnnOptions ann;  // index and voting parameters (used when retrieval == kAnn)
-    // Appearance fallback (issue #17): when the search area on the raw trajectory gives no
+    // Appearance fallback: when the search area on the raw trajectory gives no
     // loop for a query with a pose, every stored keyframe it did not hold (older than
     // search.exclude_recent, far along the path: min_path_ratio) is ranked by descriptor matches
     // with the query and the best max_verify are verified, with the same floors and the same
     // rotation gate. Drift moves the true match out of the wedge (aerial circuit, K = 15:
     // recall 0.64 in the area, 0.97 with global search); a small K makes ranking all of them
     // cheap (15 x 15 Hamming per stored keyframe). LoopResult::source says which one found it.
-    // On by default since session 21: at K = 300 on street00 at --drift 4 (raw t_err 28 %) the
+    // On by default: at K = 300 on street00 at --drift 4 (raw t_err 28 %) the
     // loops it finds where the area holds nothing tie the two passes, and the uncertainty area
     // through them then holds the true match for 0.95 of the revisits (0.80 without), recall
     // 0.76 -> 0.78 after the graph, corrected ATE 35 -> 7.0 m, zero false loops accepted; the
     // other renders unchanged; ~1.5x the median time per keyframe (docs/SEARCH_AREA.md).
     bool appearance_fallback = true;
-    // The fallback's cheap pre-ranking (issue #19, its verification tail; issue #17, a fallback
-    // that stays cheap as the map grows): every eligible stored keyframe is scored by how many of
+    // The fallback's cheap pre-ranking (it keeps the small-K verification tail short and the
+    // fallback cheap as the map grows): every eligible stored keyframe is scored by how many of
     // its K descriptors have a neighbour within match.max_distance among the query's own stored K
     // and its first fallback_rank_features extracted features (K x that many Hamming distances,
     // no ratio test), and only the fallback_candidates best are matched with the query's whole
     // extraction and verified. fallback_candidates = 0: every eligible keyframe is matched in
-    // full (the behaviour before session 18; its cost grows with the map). 5 (20 before session
-    // 22): the same loops on street00 / 05 x4, street07, the aerial flights and the K = 15 preset,
-    // and at K = 300 each candidate matched in full is 300 x 300 distances (10,000 stored
-    // keyframes: 9.4 ms with 20, bench_detector).
+    // full (its cost grows with the map). 5: the same loops as with 20 on street00 / 05 x4,
+    // street07, the aerial flights and the K = 15 preset, and at K = 300 each candidate matched
+    // in full is 300 x 300 distances (10,000 stored keyframes: 9.4 ms with 20, bench_detector).
     int fallback_candidates = 5;
     int fallback_rank_features = 0;  // features of the query besides its K, >= 0
     // With more than 10 x fallback_candidates eligible keyframes, a coarse stage first: each is
     // scored by its first fallback_coarse_features stored descriptors (its best ranked), and the
-    // 10 x fallback_candidates best go on to the full score (a large map: issue #17's <= 2 ms at
+    // 10 x fallback_candidates best go on to the full score (a large map: the target of <= 2 ms at
     // 10,000 stored keyframes). 0: score every eligible keyframe in full.
     int fallback_coarse_features = 4;
     // The coarse stage compares each keyframe's first fallback_coarse_features with the query's
-    // first fallback_coarse_probe probe descriptors (its best ranked; 0: the whole probe). 8
-    // (session 22): at K = 300 over 10,000 keyframes the coarse stage with 32 was 1.2 of the
+    // first fallback_coarse_probe probe descriptors (its best ranked; 0: the whole probe). 8:
+    // at K = 300 over 10,000 keyframes the coarse stage with 32 was 1.2 of the
     // fallback's 3.4 ms (bench_detector BM_AppearanceFallback); the same loops on the street and
     // aerial renders at K = 300 and with the K = 15 preset.
     int fallback_coarse_probe = 8;
     // The ranking uses the first fallback_fine_features stored descriptors of each keyframe and
     // of the query's probe (their best ranked; 0: all K). At K = 15 it is all of them; at K = 300
     // scoring all 300 against the query's 300 for 200 keyframes took 16 ms per keyframe
-    // (street00, session 21), and the coarse stage over 10,000 keyframes would be 12 M
+    // (street00), and the coarse stage over 10,000 keyframes would be 12 M
     // distances; 32 of them: ~2 ms, the same loops.
     int fallback_fine_features = 32;
-    // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; issue #17, bad input):
+    // Raw pose resets the caller does not flag (KeyframeInput::pose_reset; bad input):
     // a posed keyframe starts a new pose segment when its raw step from the posed keyframe before
     // is longer than pose_jump_factor x the segment's usual step (the larger of the median of its
     // last 20 steps and its mean step), when its rotation step exceeds pose_jump_max_deg, or when
@@ -433,8 +431,8 @@ class LoopDetector {
       void Check() const;
     };
     LocalMapOptions local_map;
-    // Depths for the stored K when the vSLAM gives none (issue #19: the paper keeps features at
-    // mapped points, points with a depth). Each keyframe with a pose and without depths keeps
+    // Depths for the stored K when the vSLAM gives none (the paper keeps features at mapped
+    // points, points with a depth). Each keyframe with a pose and without depths keeps
     // its whole extraction for the next stored_depths_window keyframes; its K stored features
     // are triangulated (local_map.triangulation: parallax, reprojection, relative poses from the
     // images where they fix them, else raw) against the whole extractions of the window's keyframes
@@ -458,7 +456,7 @@ class LoopDetector {
     static SearchAreaOptions DefaultSearch() {
       SearchAreaOptions s;
       s.exclude_recent = 10;
-      // The uncertainty area (issue #17): 10 % of the raw path between two passes covers the
+      // The uncertainty area: 10 % of the raw path between two passes covers the
       // drift of the benchmark's renders up to x4 (street KITTI 00 / 05 / 07, aerial), raw t_err
       // 1.7-28 %, with zero false loops accepted; docs/SEARCH_AREA.md "Uncertainty area".
       s.drift_rate = 0.1;
@@ -675,8 +673,9 @@ class LoopDetector {
   // loop graph (Options::consistency_per_keyframe_deg): the raw relative rotation over |q - m|
   // keyframes, or, shorter, raw odometry to an accepted loop's ends, the loop's own verified
   // rotation, and raw odometry back. After a loop the raw poses of the two passes are still as
-  // far apart as the drift made them; only the loop knows the correction (issue #17: 27 true
-  // revisits in a row were rejected right after an accepted loop).
+  // far apart as the drift made them; only the loop knows the correction (with the raw
+  // relative rotation alone, 27 true revisits in a row were rejected right after an accepted
+  // loop).
   struct GraphPrior {
     size_t keyframes = 0;
     Eigen::Quaterniond match_from_query = Eigen::Quaterniond::Identity();

@@ -178,7 +178,7 @@ struct PoseGraphOptions {
   // loop_weight_rounds more times, until it is consistent. 0 rounds: off. The factor applies to
   // the solve only: PCM and the checks use the loops' own information. A minority of kept loops
   // left inconsistent is reported (the checks), not satisfied by weighting every loop up: with
-  // the worst loop deciding (quantile 1, before session 23), a few kept loops metres off on the
+  // the worst loop deciding (quantile 1, the former rule), a few kept loops metres off on the
   // street00 renders scaled all loops x80-470 and bent the trajectory around them (KITTI t_err
   // 1.10 % at drift x2 against 0.79 % with the median; docs/POSEGRAPH.md).
   int loop_weight_rounds = 4;

@@ -50,7 +50,7 @@ struct SearchAreaOptions {
   // travelled since the last accepted loop: margin = drift_tolerance * distance (world units).
   // 0 disables it. E.g. 0.02 = 2 % of the path length.
   double drift_tolerance = 0.0;
-  // Uncertainty area (issue #17; strategies kPaper and kRadius), added to the area above. The raw
+  // Uncertainty area (strategies kPaper and kRadius), added to the area above. The raw
   // positions of one place seen twice differ by the odometry drift accumulated along the path
   // between the two visits, so every eligible keyframe k with
   //   |x_k - x_t| <= r_k,   r_k = drift_base_steps x s + drift_rate x L(k, t)
