@@ -200,8 +200,8 @@ void AddSearchKeys(KeyList& k) {
   k.Add(s + "refit_growth", SL_FIELD(detector.search.refit_growth), "fraction",
         "trajectory growth that triggers a plane refit and grid rebuild (> 0)");
   k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
-        "grid cell size (0: 4x the mean in-plane step; >= 0; clamped to [1/256, 1] x the "
-        "trajectory's extent)");
+        "grid cell size (0: 4x the mean in-plane step; >= 0; a given size is kept between 1/16 "
+        "of that and the trajectory's extent)");
 }
 
 // detector.match.*, detector.verify.*, detector.local_map.*: matching and verification.

@@ -78,8 +78,9 @@ uint64_t CellKey(int64_t ix, int64_t iy) {
   return (static_cast<uint64_t>(ix) << 32) ^ (static_cast<uint64_t>(iy) & 0xffffffffULL);
 }
 
-// The finest grid a SearchArea builds: cells per side of the trajectory's extent.
-constexpr double kMaxCellsPerSide = 256.0;
+// The finest grid a SearchArea builds: a cell at least this fraction of the automatic one (4x the
+// mean in-plane step), so a ray crosses at most this many times the cells it does by default.
+constexpr double kMinCellOfAutomatic = 1.0 / 16.0;
 
 // Uniform grid hash in the plane: keyframes in their cell, segment k (from keyframe k-1 to k)
 // in every cell of its bounding box dilated by one cell, so that a ray sampled every half cell
@@ -467,24 +468,27 @@ void SearchArea::Impl::Rebuild() {
   const size_t n = positions.size();
   if (!options.plane_normal && n >= 3) FitPlane();
   for (size_t k = 0; k < n; ++k) projected[k] = plane.Project(positions[k]);
-  double cell = options.cell_size;
-  if (cell <= 0.0) {
-    double steps = 0.0;
-    for (size_t k = 1; k < n; ++k) steps += (projected[k] - projected[k - 1]).norm();
-    cell = n >= 2 ? 4.0 * steps / static_cast<double>(n - 1) : 0.0;
-    if (!(cell > 0.0)) cell = 1.0;
-  }
+  double steps = 0.0;
+  for (size_t k = 1; k < n; ++k) steps += (projected[k] - projected[k - 1]).norm();
+  double automatic = n >= 2 ? 4.0 * steps / static_cast<double>(n - 1) : 0.0;
+  if (!(automatic > 0.0)) automatic = 1.0;
   // The grid only speeds the search up (its result does not depend on the cell size), but its
-  // cost does: a cell far below the trajectory's extent makes every ray cross millions of cells
-  // (1 mm on a 10 m scene: > 30 s per keyframe). At most kMaxCellsPerSide cells a side, at least
-  // one; a trajectory without extent keeps a cell of 1.
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(kInf), hi = Eigen::Vector2d::Constant(-kInf);
-  for (size_t k = 0; k < n; ++k) {
-    lo = lo.cwiseMin(projected[k]);
-    hi = hi.cwiseMax(projected[k]);
+  // cost does: a cell far below the keyframe spacing makes every ray cross millions of cells
+  // (1 mm on a 10 m scene: > 30 s per keyframe). A given cell_size is raised to at least
+  // kMinCellOfAutomatic x the automatic cell (a ray then costs at most that factor more than by
+  // default, whatever the map's size) and lowered to at most the trajectory's extent in the plane
+  // (one cell then holds everything).
+  double cell = automatic;
+  if (options.cell_size > 0.0) {
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(kInf), hi = Eigen::Vector2d::Constant(-kInf);
+    for (size_t k = 0; k < n; ++k) {
+      lo = lo.cwiseMin(projected[k]);
+      hi = hi.cwiseMax(projected[k]);
+    }
+    const double extent = n == 0 ? 0.0 : (hi - lo).maxCoeff();
+    cell = std::max(options.cell_size, kMinCellOfAutomatic * automatic);
+    if (extent > 0.0) cell = std::min(cell, std::max(extent, kMinCellOfAutomatic * automatic));
   }
-  const double extent = n == 0 ? 0.0 : (hi - lo).maxCoeff();
-  cell = extent > 0.0 ? std::clamp(cell, extent / kMaxCellsPerSide, extent) : 1.0;
   grid.Reset(cell);
   for (size_t k = 0; k < n; ++k) {
     grid.AddKeyframe(static_cast<int32_t>(k), projected[k]);

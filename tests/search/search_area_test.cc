@@ -380,7 +380,13 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
     o.drift_max_candidates = uni(rng) < 0.5 ? 1000 : 1 + static_cast<int>(30 * uni(rng));
     o.fallback_count = 1 + static_cast<int>(40 * uni(rng));
     if (uni(rng) < 0.5) o.plane_normal = rot.col(2);
-    o.cell_size = uni(rng) < 0.3 ? 0.3 + 3.0 * uni(rng) : 0.0;
+    // The grid cell: automatic, given, or given far outside what the grid keeps (raised to 1/16
+    // of the automatic cell, lowered to the extent): the area must not depend on it.
+    const double cell_pick = uni(rng);
+    o.cell_size = cell_pick < 0.2   ? 0.3 + 3.0 * uni(rng)
+                  : cell_pick < 0.3 ? 1e-300
+                  : cell_pick < 0.4 ? 1e6
+                                    : 0.0;
     SearchArea area(o);
     int loop_index = 0;
     std::vector<std::pair<int, int>> loops;

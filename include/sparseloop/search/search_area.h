@@ -87,7 +87,8 @@ struct SearchAreaOptions {
   // Relative growth of the trajectory that triggers a plane refit and grid rebuild
   // (dimensionless, > 0; 0.25 = when it has grown by 25 %). Keeps Add() amortised O(1).
   double refit_growth = 0.25;
-  // Grid cell (world units; 0: 4x the mean step), clamped to [1/256, 1] x the plane extent.
+  // Grid cell (world units; 0: 4x the mean in-plane step). A given size is kept between 1/16 of
+  // the automatic one (a ray's cost is bounded) and the trajectory's extent in the plane.
   double cell_size = 0.0;
 
   void Check() const;
