@@ -626,7 +626,10 @@ std::vector<int> LoopDetector::StoredOrder(const KeyframeRecord& full) const {
                options_.repeatability_window > 0 ? std::max(k, options_.repeatability_pool) : k);
   std::vector<int> order(static_cast<size_t>(std::max(0, pool)));
   std::iota(order.begin(), order.end(), 0);
-  if (options_.repeatability_window == 0 || recent_.empty()) return order;
+  // Without a pose the persistent features are kept out: nothing but the decay of the shared
+  // view tells a keyframe still seen ahead from a revisit (the overlap walk), and the features
+  // that persist longest are the ones that defeat that decay (Options::repeatability_window).
+  if (options_.repeatability_window == 0 || recent_.empty() || !full.has_pose) return order;
   const std::vector<Descriptor> candidates(full.descriptors.begin(),
                                            full.descriptors.begin() + pool);
   std::vector<int> found(order.size(), 0);

@@ -284,18 +284,31 @@ TEST(LoopDetector, StoredDepthsBufferIsBoundedAndCleared) {
 TEST(LoopDetector, RepeatabilityRankingStoresWhatTheKeyframeBeforeSaw) {
   const cv::Mat a = Textured(4);
   const cv::Mat transient = WithBlobs(Shifted(a), 40, cv::Rect(0, 0, 310, 230), 5, 9, 21);
-  auto stored_of_1 = [&](int window) {
+  // Keyframes with raw poses (repeatability ranks only those, see below).
+  auto stored_of_1 = [&](int window, bool posed) {
     LoopDetector::Options o = GlobalNoExclusion();
     o.features.max_features = 15;
     o.repeatability_window = window;
     LoopDetector detector(o);
-    detector.Process(Input(0, a));
-    detector.Process(Input(1, transient));
+    KeyframeInput first = Input(0, a), second = Input(1, transient);
+    if (posed) {
+      first.world_from_cam = Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero());
+      second.world_from_cam =
+          Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1, 0, 0));
+    }
+    detector.Process(first);
+    detector.Process(second);
     return detector.record(1);
   };
-  const KeyframeRecord response = stored_of_1(0), repeatable = stored_of_1(1);
+  const KeyframeRecord response = stored_of_1(0, true), repeatable = stored_of_1(1, true);
   ASSERT_EQ(response.size(), 15u);
   ASSERT_EQ(repeatable.size(), 15u);
+  // Without a pose the stored K keep the extraction's own ranking: the features that persist
+  // longest would defeat the overlap walk, the only guard against the view still ahead
+  // (kitti07_first160 without poses, K = 20: 8 false loops with them, 0 without).
+  const KeyframeRecord unposed = stored_of_1(1, false);
+  EXPECT_EQ(unposed.descriptors, stored_of_1(0, false).descriptors);
+  EXPECT_NE(unposed.descriptors, repeatable.descriptors);
   // How many of the stored 15 a later clean view of the place finds (asymmetric, 1,000).
   LoopDetector::Options wide = GlobalNoExclusion();
   wide.asymmetric_matching = true;
