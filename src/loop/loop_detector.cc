@@ -174,19 +174,20 @@ KeyframeRecord StoredSubset(const KeyframeRecord& full, const std::vector<int>& 
   return rec;
 }
 
-int SmallKFloor(const LoopDetector::Options& o, int n) {
-  const int k = o.features.max_features;
+int SmallKFloor(const LoopDetector::Options& o, int n, int k) {
   return std::min(n,
                   std::max(o.small_k_floor, static_cast<int>(std::ceil(o.small_k_fraction * k))));
 }
 }  // namespace
 
-int LoopDetector::Options::EffectiveMinInliers() const {
-  return std::max(SmallKFloor(*this, verify.min_inliers),
-                  static_cast<int>(std::ceil(min_inlier_fraction_of_k * features.max_features)));
+int LoopDetector::Options::EffectiveMinInliers(int k) const {
+  return std::max(SmallKFloor(*this, verify.min_inliers, k),
+                  static_cast<int>(std::ceil(min_inlier_fraction_of_k * k)));
 }
 
-int LoopDetector::Options::EffectiveMinMatches() const { return SmallKFloor(*this, min_matches); }
+int LoopDetector::Options::EffectiveMinMatches(int k) const {
+  return SmallKFloor(*this, min_matches, k);
+}
 
 LoopDetector::LoopDetector(Options options)
     : options_(std::move(options)), search_([&] {

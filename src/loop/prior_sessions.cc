@@ -41,6 +41,9 @@ void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord
     }
   }
   ClearCallCaches();  // prior_records_ may move
+  size_t most = 0;
+  for (const KeyframeRecord& r : records) most = std::max(most, r.size());
+  prior_k_[session] = static_cast<int>(std::max<size_t>(most, 1));
   std::vector<PackedKeyframe> packed;
   packed.reserve(records.size());
   for (const auto& r : records) packed.push_back(PackRecord(r));
@@ -84,6 +87,12 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   return result;
 }
 
+int LoopDetector::PairK(int64_t session) const {
+  const int k = options_.features.max_features;
+  if (session == 0) return k;
+  return prior_k_.at(session);
+}
+
 void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
                                       const std::vector<PoolEntry>& pool,
                                       LoopResult* result) const {
@@ -93,10 +102,15 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
     return;
   }
   Timer stage;
+  // Each pair's floors are those of the K its record was stored with (PairK): the ranking keeps
+  // what passes the lowest, each candidate is then held to its own.
+  int lowest_floor = options_.EffectiveMinMatches();
+  for (const PoolEntry& e : pool)
+    lowest_floor = std::min(lowest_floor, options_.EffectiveMinMatches(PairK(e.session)));
   const loop_internal::CandidateRanking ranking = loop_internal::RankCandidates(
       pool.size(), [&](size_t e) -> const PackedKeyframe& { return *pool[e].record; },
       [](size_t e) { return e; }, [&](const PackedKeyframe& r) { return MatchQuery(query, r); },
-      options_.EffectiveMinMatches(), options_.match.max_distance);
+      lowest_floor, options_.match.max_distance);
   const auto& ranked = ranking.ranked;
   result->timings.match_ms += stage.ElapsedMs();
   if (ranked.empty()) {
@@ -113,14 +127,18 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   for (int r = 0; r < n_verify; ++r) {
     const loop_internal::RankedCandidate& cand = ranked[r];
     const PoolEntry& entry = pool[cand.entry];
+    const int k = PairK(entry.session);
+    if (static_cast<int>(cand.matches.size()) < options_.EffectiveMinMatches(k)) continue;
     const KeyframeRecord& match = Unpacked(*entry.record);
-    VerificationResult v = VerifyPair(query, match, cand.matches, verify_);
+    VerifyOptions verify = verify_;
+    verify.min_inliers = options_.EffectiveMinInliers(k);
+    VerificationResult v = VerifyPair(query, match, cand.matches, verify);
     if (have_best && !v.success && v.inliers <= result->inliers) continue;
     result->match_id = match.id;
     result->match_session = entry.session;
     result->matches = static_cast<int>(cand.matches.size());
     result->inliers = v.inliers;
-    result->score = static_cast<double>(v.inliers) / options_.features.max_features;
+    result->score = static_cast<double>(v.inliers) / k;
     result->method = v.method;
     result->pose_kind = v.pose_kind;
     result->match_from_query = v.match_from_query;

@@ -59,28 +59,6 @@ KeyframeRecord FromStoredKeyframe(const StoredKeyframe& s, float fallback_focal_
 
 namespace {
 
-int StoredFeatures(const LoopDetector& detector) {
-  return detector.options().features.max_features;
-}
-int StoredFeatures(const LoopClosing& closing) { return StoredFeatures(closing.detector()); }
-
-// A session stored at another K than this one's: its keyframes rarely match this session's (a map
-// stored at -K 15, queried at the default K: no cross-session loop), so say so.
-void WarnAboutOtherK(const MapDatabase& map, int64_t session, const std::vector<KeyframeRecord>& r,
-                     int features) {
-  size_t most = 0;
-  for (const KeyframeRecord& k : r) most = std::max(most, k.size());
-  if (most == 0 ||
-      (most * 2 >= static_cast<size_t>(features) && most <= 2 * static_cast<size_t>(features))) {
-    return;
-  }
-  Logger().warn(
-      "{}: session {} was stored with at most {} features per keyframe, this session stores {} "
-      "(detector.features.max_features): keyframes of so different K rarely match, so few or no "
-      "loops into that session will be found; use -K {} to search it",
-      map.path().string(), session, most, features, most);
-}
-
 // Reads each earlier session into `sink` (LoopDetector or LoopClosing: AddPriorKeyframes).
 template <typename Sink>
 size_t LoadSessions(const MapDatabase& map, float fallback_focal_px, int64_t skip_session,
@@ -94,11 +72,16 @@ size_t LoadSessions(const MapDatabase& map, float fallback_focal_px, int64_t ski
     std::vector<KeyframeRecord> records;
     records.reserve(stored.size());
     for (const auto& s : stored) records.push_back(FromStoredKeyframe(s, fallback_focal_px));
-    WarnAboutOtherK(map, session, records, StoredFeatures(*sink));
+    size_t most = 0;
+    for (const KeyframeRecord& k : records) most = std::max(most, k.size());
     loaded += records.size();
     sink->AddPriorKeyframes(session, std::move(records));
-    Logger().info("{}: loaded session {} ({} keyframes) for multi-session detection",
-                  map.path().string(), session, stored.size());
+    // A session stored at another K is matched with the floors of the smaller K
+    // (LoopDetector::Options::EffectiveMinInliers(k)).
+    Logger().info(
+        "{}: loaded session {} ({} keyframes, up to {} features each) for multi-session "
+        "detection",
+        map.path().string(), session, stored.size(), most);
   }
   return loaded;
 }

@@ -202,8 +202,10 @@ class LoopDetector {
     // query_max_features), then by features.ranking. A feature re-found in the keyframes before
     // lies on structure that persists under motion; a strong corner seen once (a specular
     // highlight, a moving object, noise) does not. Only the first repeatability_pool features
-    // of features.ranking compete (>= K). Window 0: features.ranking alone (the paper's rule
-    // with kPopcount). Keyframes, >= 0; pool, features.
+    // of features.ranking compete (>= K). Only a keyframe with a raw pose is ranked so: without
+    // one, the persistent features defeat the overlap walk (docs/DETECTOR.md, "Sparse K = 15: what
+    // makes 15 stored features recall"). Window 0: features.ranking alone (the paper's rule with
+    // kPopcount). Keyframes, >= 0; pool, features.
     int repeatability_window = 0;
     int repeatability_pool = 300;
     int check_every = 1;   // run the loop check every N keyframes (paper's N), keyframes >= 1
@@ -450,9 +452,13 @@ class LoopDetector {
     // The inlier threshold actually applied: max(SmallK(verify.min_inliers),
     // ceil(min_inlier_fraction_of_k * K)), SmallK(n) = min(n, max(small_k_floor,
     // ceil(small_k_fraction * K))).
-    int EffectiveMinInliers() const;
+    int EffectiveMinInliers() const { return EffectiveMinInliers(features.max_features); }
     // The descriptor-match threshold actually applied: SmallK(min_matches).
-    int EffectiveMinMatches() const;
+    int EffectiveMinMatches() const { return EffectiveMinMatches(features.max_features); }
+    // The same for a pair whose smaller record holds `k` features (a keyframe of an earlier
+    // session stored at another K).
+    int EffectiveMinInliers(int k) const;
+    int EffectiveMinMatches(int k) const;
     static SearchAreaOptions DefaultSearch() {
       SearchAreaOptions s;
       s.exclude_recent = 10;
@@ -711,6 +717,12 @@ class LoopDetector {
   // Earlier sessions (AddPriorKeyframes), searched by appearance only.
   std::vector<PackedKeyframe> prior_records_;
   std::vector<int64_t> prior_session_;  // session of each prior record
+  // Features per keyframe each earlier session was stored with (its records' most), by session.
+  std::unordered_map<int64_t, int> prior_k_;
+  // The K of a pair of the query and a record of `session` (0 = current): the K that record was
+  // stored with. Floors and score use it. (The smaller of the two K let a K = 20 symmetric query
+  // through with 8 inliers against K = 150 records: 3 wrong loops of 49; multisession_test.)
+  int PairK(int64_t session) const;
   std::unordered_map<int64_t, std::unordered_map<int64_t, size_t>> prior_index_;  // session, id
 };
 
