@@ -7,6 +7,7 @@
 // cross-session loops are correct by GT distance and none is false; relocalisation of pose-less
 // keyframes lands on the right keyframe with the pose close to GT.
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -330,7 +331,7 @@ TEST_F(MultiSession, SecondSessionInAnotherSim3FrameFindsCorrectCrossSessionLoop
 // stored K itself. A pair's floors
 // (matches, inliers) and score are those of the K its stored record was kept with. A symmetric
 // K = 20 query (20 features) rarely reaches the floors of a K = 150 record: it finds some, none
-// wrong (the floors of K = 20 let 3 wrong loops of 49 through).
+// wrong (the floors of K = 20 let 3 wrong loops of 49 through, all 60 frames queried).
 TEST_F(MultiSession, ASessionStoredAtAnotherKServesThisOne) {
   auto options = [](int k, bool asymmetric) {
     LoopDetector::Options o = Options();
@@ -338,22 +339,28 @@ TEST_F(MultiSession, ASessionStoredAtAnotherKServesThisOne) {
     o.asymmetric_matching = asymmetric;
     return o;
   };
-  auto cross_session = [&](const LoopDetector::Options& stored, const LoopDetector::Options& now) {
-    const auto path = test::TempDir("other_k") / "map.db";
-    {
-      LoopDetector first(stored);
-      auto map = MapDatabase::Open(path);
-      const int64_t s = map->BeginSession("one");
-      for (size_t i = 0; i < session1_->size(); ++i) {
-        first.Process(Input((*session1_)[i], int64_t(i), Sim3d(), true, false));
-        map->PutKeyframe(ToStoredKeyframe(first.record(int64_t(i)), s));
-      }
-    }
+  // Session 1 stored once per (K, asymmetric); session 2 queried on every other frame.
+  std::map<std::pair<int, bool>, std::filesystem::path> maps;
+  auto stored_map = [&](const LoopDetector::Options& stored) {
+    const auto key = std::make_pair(stored.features.max_features, stored.asymmetric_matching);
+    if (maps.count(key)) return maps[key];
+    const auto path =
+        test::TempDir("other_k_" + std::to_string(key.first) + (key.second ? "a" : "s")) / "map.db";
+    LoopDetector first(stored);
     auto map = MapDatabase::Open(path);
+    const int64_t s = map->BeginSession("one");
+    for (size_t i = 0; i < session1_->size(); ++i) {
+      first.Process(Input((*session1_)[i], int64_t(i), Sim3d(), true, false));
+      map->PutKeyframe(ToStoredKeyframe(first.record(int64_t(i)), s));
+    }
+    return maps[key] = path;
+  };
+  auto cross_session = [&](const LoopDetector::Options& stored, const LoopDetector::Options& now) {
+    auto map = MapDatabase::Open(stored_map(stored));
     LoopDetector second(now);
     LoadPriorSessions(*map, 0.0f, &second);
     std::pair<int, int> found_wrong{0, 0};
-    for (size_t k = 0; k < session2_->size(); ++k) {
+    for (size_t k = 0; k < session2_->size(); k += 2) {
       const LoopResult r =
           second.Process(Input((*session2_)[k], int64_t(k), Session2Frame(), true, false));
       if (!r.detected() || r.match_session != 1) continue;
@@ -366,7 +373,7 @@ TEST_F(MultiSession, ASessionStoredAtAnotherKServesThisOne) {
     }
     return found_wrong;
   };
-  const int half = int(session2_->size()) / 2;
+  const int half = int(session2_->size()) / 4;  // of the 30 queries
   // The same K stored and searched: what a record of that K gives (cross-session pairs are
   // verified by appearance only, without the weak-pair agreement or the pose gate, so a K = 20
   // record lets a few wrong pairs through even at its own K).
@@ -388,7 +395,7 @@ TEST_F(MultiSession, ASessionStoredAtAnotherKServesThisOne) {
                  << (b.asymmetric_matching ? " asymmetric" : ""));
     const bool small_symmetric_query =
         !b.asymmetric_matching && b.features.max_features < a.features.max_features;
-    EXPECT_GE(found, small_symmetric_query ? 5 : half);
+    EXPECT_GE(found, small_symmetric_query ? 3 : half);
     EXPECT_LE(wrong, wrong_at_own_k[a.features.max_features]);
     std::printf("stored K %d, now K %d%s: %d found, %d wrong\n", a.features.max_features,
                 b.features.max_features, b.asymmetric_matching ? " asymmetric" : "", found, wrong);
