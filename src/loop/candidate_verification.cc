@@ -318,7 +318,7 @@ int VerifyCount(const LoopDetector::Options& o,
 }  // namespace
 
 void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
-                                   LoopResult* result) {
+                                   LoopResult* result, bool weak_pairs) {
   result->candidates = static_cast<int>(candidates.size());
   if (candidates.empty()) {
     result->status = LoopStatus::kNoCandidates;
@@ -326,7 +326,8 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   }
   // 4. Hamming matching against every candidate; rank by match count, then score, then id.
   Timer stage;
-  const bool weak_enabled = options_.weak_pairs && options_.weak_min_inliers < verify_.min_inliers;
+  const bool weak_enabled =
+      weak_pairs && options_.weak_pairs && options_.weak_min_inliers < verify_.min_inliers;
   VerifyOptions verify = verify_;
   if (weak_enabled) verify.min_inliers = options_.weak_min_inliers;
   std::vector<size_t> record_index(candidates.size());
@@ -388,7 +389,16 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
   result->timings.verify_ms = stage.ElapsedMs();
   if (status == LoopStatus::kDetected) {
     const size_t match_index = index_of_.at(result->match_id);
-    if (SameSegment(query_index, match_index)) {
+    // A weak pair (below the inlier floor, accepted by the agreement of its neighbour) is a loop
+    // but no anchor: its pose rests on 6-7 inliers and can be far off (aerial_figure8, K = 20:
+    // 92 -> 3 with 6 PnP inliers, 36.9 deg off, put the rotation prior of the next 15 true
+    // revisits 36 deg off, all rejected). Only a loop at the floor (or verified against the local
+    // map) anchors the rotation prior and the search area.
+    const bool anchor = result->inliers >= verify_.min_inliers || result->local_map_inliers > 0;
+    if (!SameSegment(query_index, match_index)) {
+      result->source = CandidateSource::kEarlierSegment;  // before a raw pose reset: relocalisation
+      result->relocalization = true;
+    } else if (anchor) {
       accepted_loops_.push_back({query_index, match_index, result->match_from_query.rotation});
       // The loop's rotation against the raw one: query-pass raw directions into the match
       // pass's (the uncertainty area predicts the path since the loop in the match's frame).
@@ -406,9 +416,6 @@ void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int6
         }
       }
       search_.OnLoopAccepted(query.id, result->match_id, correction);
-    } else {  // a keyframe before a raw pose reset (MatchAgainst): a relocalisation
-      result->source = CandidateSource::kEarlierSegment;
-      result->relocalization = true;
     }
   }
 }

@@ -389,9 +389,13 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   }
   std::vector<int64_t> others = PreRankByAppearance(query, index, eligible);
   const double fallback_search_ms = stage.ElapsedMs();
+  // Outside the search area the raw trajectory vouches for nothing: a weak pair there (6-7
+  // inliers of K = 20, confirmed only by its neighbour) is as likely the same texture elsewhere
+  // (aerial_circuit, street00: runs of false weak pairs 100-420 m from their match); only pairs
+  // at the inlier floor.
   LoopResult fallback;
   fallback.query_id = query.id;
-  SearchAndVerify(query, std::move(others), &fallback);
+  SearchAndVerify(query, std::move(others), &fallback, /*weak_pairs=*/false);
   result->timings.search_ms += fallback_search_ms;
   result->appearance_candidates = fallback.candidates;
   result->verified_by_appearance = std::move(fallback.verified_in_area);

@@ -345,23 +345,33 @@ TEST(LoopDetector, WeakPairsNeedTheAgreementOfTheKeyframeBefore) {
   frames.push_back(Shifted(Shifted(place)));           // 6: revisit of 0 / 1
   frames.push_back(Shifted(Shifted(Shifted(place))));  // 7: revisit of 1 / 0
   frames.push_back(Textured(36));
-  auto run = [&](int weak) {
+  size_t anchors = 0;
+  auto run = [&](int weak, int floor) {
     LoopDetector::Options o = GlobalNoExclusion();
     o.search.exclude_recent = 3;
     o.features.max_features = 15;
-    o.small_k_floor = 15;  // floor = K: every pair below is weak
+    o.small_k_floor = floor;  // 15 = K: every pair below is weak
     o.weak_pairs = weak > 0;
     if (weak > 0) o.weak_min_inliers = weak;
     LoopDetector detector(o);
     std::vector<LoopResult> out;
     for (size_t i = 0; i < frames.size(); ++i)
       out.push_back(detector.Process(Input(static_cast<int64_t>(i), frames[i])));
+    anchors = detector.num_anchor_loops();
     return out;
   };
-  const auto strict = run(0);
+  const auto strict = run(0, 15);
   EXPECT_FALSE(strict[6].detected()) << ToString(strict[6].status);
   EXPECT_FALSE(strict[7].detected()) << ToString(strict[7].status);
-  const auto weak = run(6);
+  // At the usual floor the revisit is a loop at the floor, and it anchors the rotation prior and
+  // the search area of what follows.
+  const auto usual = run(6, 8);
+  ASSERT_TRUE(usual[7].detected()) << ToString(usual[7].status);
+  EXPECT_GE(usual[7].inliers, 8);
+  EXPECT_GE(anchors, 1u);
+  const auto weak = run(6, 15);
+  // A weak loop is a loop, but no anchor: its pose rests on a handful of inliers.
+  EXPECT_EQ(anchors, 0u);
   EXPECT_EQ(weak[6].status, LoopStatus::kRejectedByTemporal) << ToString(weak[6].status);
   EXPECT_GE(weak[6].inliers, 6);
   ASSERT_EQ(weak[7].status, LoopStatus::kDetected) << ToString(weak[7].status);
@@ -429,6 +439,48 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
   EXPECT_EQ(global.verified_in_area.back(), global.match_id);
   EXPECT_LE(global.verified_in_area.size(), 3u);  // max_verify
   EXPECT_TRUE(global.verified_by_appearance.empty());
+}
+
+// Outside the search area the raw trajectory vouches for nothing, so the appearance fallback
+// takes no weak pair: the revisit of WeakPairsNeedTheAgreementOfTheKeyframeBefore (weak, confirmed
+// by the keyframe before), posed far from its first visit, is a loop when the area holds it
+// (global search) and none when only the fallback reaches it.
+TEST(LoopDetector, AppearanceFallbackTakesNoWeakPairs) {
+  const cv::Mat place = Textured(31);
+  std::vector<cv::Mat> frames = {place, Shifted(place)};
+  for (uint64_t seed : {32, 33, 34, 35}) frames.push_back(Textured(seed));
+  frames.push_back(Shifted(Shifted(place)));           // 6: revisit of 0 / 1
+  frames.push_back(Shifted(Shifted(Shifted(place))));  // 7: revisit of 1 / 0
+  auto run = [&](SearchStrategy strategy) {
+    LoopDetector::Options o;
+    o.search.strategy = strategy;
+    o.search.radius = 1.0;
+    o.search.exclude_recent = 3;
+    o.search.drift_rate = 0.0;  // the radius alone: the drifted revisit is outside it
+    o.min_path_ratio = 0;
+    o.features.max_features = 15;
+    o.small_k_floor = 15;  // floor = K: every pair below is weak
+    o.weak_pairs = true;
+    o.appearance_fallback = true;
+    LoopDetector detector(o);
+    std::vector<LoopResult> out;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      KeyframeInput in = Input(static_cast<int64_t>(i), frames[i]);
+      in.world_from_cam = i < 6 ? Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                                        Eigen::Vector3d(100.0 * static_cast<double>(i), 0, 0))
+                                : Sim3d(1.0, Eigen::Quaterniond::Identity(),
+                                        Eigen::Vector3d(0.1 * static_cast<double>(i - 6), 50, 0));
+      out.push_back(detector.Process(in));
+    }
+    return out;
+  };
+  const auto global = run(SearchStrategy::kGlobal);
+  ASSERT_TRUE(global[7].detected()) << ToString(global[7].status);
+  EXPECT_LT(global[7].inliers, 15);  // weak
+  const auto fallback = run(SearchStrategy::kRadius);
+  EXPECT_GT(fallback[7].appearance_candidates, 0);
+  EXPECT_FALSE(fallback[6].detected()) << ToString(fallback[6].status);
+  EXPECT_FALSE(fallback[7].detected()) << ToString(fallback[7].status);
 }
 
 // The fallback's pre-ranking (fallback_candidates): among 14 eligible stored keyframes, only the

@@ -336,8 +336,11 @@ class LoopDetector {
     // gate (weak or not): its match within agreement_window + (their query distance) keyframes
     // of this match. A loop is a run of keyframes; a chance pair stands alone. An unconfirmed weak
     // pair ends kRejectedByTemporal. Candidates need only weak_min_inliers descriptor matches
-    // then. Off: the floor alone decides. weak_min_inliers >= 5 (no effect at or above the
-    // floor); agreement_window in keyframes >= 1.
+    // then. A weak loop anchors nothing (the rotation prior along the loop graph and the search
+    // area go through loops at the floor only), and the appearance fallback takes no weak pair
+    // (outside the search area the raw pose vouches for nothing: the same texture elsewhere
+    // verifies with 6-7 inliers in runs). Off: the floor alone decides. weak_min_inliers >= 5 (no
+    // effect at or above the floor); agreement_window in keyframes >= 1.
     bool weak_pairs = false;
     int weak_min_inliers = 6;
     int agreement_window = 3;
@@ -501,6 +504,8 @@ class LoopDetector {
   // added) on a bad session id or record.
   void AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records);
   size_t num_prior_keyframes() const { return prior_records_.size(); }
+  // Loops that anchor the rotation prior and the search area (a weak pair does not), count.
+  size_t num_anchor_loops() const { return accepted_loops_.size(); }
   KeyframeRecord prior_record(int64_t session, int64_t id) const;
 
   // Relocalisation: extracts the input's features and matches them against every stored keyframe
@@ -545,9 +550,10 @@ class LoopDetector {
   // something).
   bool SameSegment(size_t a, size_t b) const { return segment_[a] == segment_[b]; }
   // Matching and ranking of the candidates, then TryCandidate on the best max_verify until one
-  // is detected; the most informative outcome goes to *result.
+  // is detected; the most informative outcome goes to *result. `weak_pairs`: whether
+  // Options::weak_pairs applies (not to the appearance fallback's candidates).
   void SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
-                       LoopResult* result);
+                       LoopResult* result, bool weak_pairs = true);
   // One ranked candidate: verification (and the local map), then the gates (rotation, weak
   // pairs, continuity, temporal). Fills *trial; returns its status.
   LoopStatus TryCandidate(const KeyframeRecord& query, size_t query_index, size_t match_index,
