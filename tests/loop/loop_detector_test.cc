@@ -334,16 +334,23 @@ TEST(LoopDetector, RepeatabilityRankingStoresWhatTheKeyframeBeforeSaw) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
+// A place seen twice (0, 1), four other places, then the place again in two keyframes (6: a
+// revisit of 0 / 1, 7: of 1 / 0).
+std::vector<cv::Mat> RevisitInTwoKeyframes() {
+  const cv::Mat place = Textured(31);
+  std::vector<cv::Mat> frames = {place, Shifted(place)};
+  for (uint64_t seed : {32, 33, 34, 35}) frames.push_back(Textured(seed));
+  frames.push_back(Shifted(Shifted(place)));
+  frames.push_back(Shifted(Shifted(Shifted(place))));
+  return frames;
+}
+
 // Weak pairs: with the inlier floor at K (so every real pair here is weak),
 // the first keyframe of a revisit is verified but unconfirmed (kRejectedByTemporal), the second,
 // whose match is next to the first's, is confirmed by it and detected; an isolated weak pair is
 // never detected. Without weak pairs neither is detected (too few matches for the K floor).
 TEST(LoopDetector, WeakPairsNeedTheAgreementOfTheKeyframeBefore) {
-  const cv::Mat place = Textured(31);
-  std::vector<cv::Mat> frames = {place, Shifted(place)};
-  for (uint64_t seed : {32, 33, 34, 35}) frames.push_back(Textured(seed));
-  frames.push_back(Shifted(Shifted(place)));           // 6: revisit of 0 / 1
-  frames.push_back(Shifted(Shifted(Shifted(place))));  // 7: revisit of 1 / 0
+  std::vector<cv::Mat> frames = RevisitInTwoKeyframes();
   frames.push_back(Textured(36));
   size_t anchors = 0;
   auto run = [&](int weak, int floor) {
@@ -446,11 +453,7 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
 // by the keyframe before), posed far from its first visit, is a loop when the area holds it
 // (global search) and none when only the fallback reaches it.
 TEST(LoopDetector, AppearanceFallbackTakesNoWeakPairs) {
-  const cv::Mat place = Textured(31);
-  std::vector<cv::Mat> frames = {place, Shifted(place)};
-  for (uint64_t seed : {32, 33, 34, 35}) frames.push_back(Textured(seed));
-  frames.push_back(Shifted(Shifted(place)));           // 6: revisit of 0 / 1
-  frames.push_back(Shifted(Shifted(Shifted(place))));  // 7: revisit of 1 / 0
+  const std::vector<cv::Mat> frames = RevisitInTwoKeyframes();
   auto run = [&](SearchStrategy strategy) {
     LoopDetector::Options o;
     o.search.strategy = strategy;
