@@ -360,11 +360,11 @@ class LoopDetector {
     // rotation gate. Drift moves the true match out of the wedge (aerial circuit, K = 15:
     // recall 0.64 in the area, 0.97 with global search); a small K makes ranking all of them
     // cheap (15 x 15 Hamming per stored keyframe). LoopResult::source says which one found it.
-    // On by default: at K = 300 on street00 at --drift 4 (raw t_err 28 %) the
-    // loops it finds where the area holds nothing tie the two passes, and the uncertainty area
-    // through them then holds the true match for 0.95 of the revisits (0.80 without), recall
-    // 0.76 -> 0.78 after the graph, corrected ATE 35 -> 7.0 m, zero false loops accepted; the
-    // other renders unchanged; ~1.5x the median time per keyframe (docs/SEARCH_AREA.md).
+    // On by default: where the drift outgrows the uncertainty area, the loops it finds tie the
+    // two passes and the area through them holds the revisits after it. K = 300, street05 at
+    // --drift 8 (raw t_err 27.7 %): recall@100%P 0.532 -> 0.672 (2 loops from the fallback); on
+    // the street and aerial renders up to --drift 4 the area holds every revisit and the
+    // fallback finds none (docs/SEARCH_AREA.md).
     bool appearance_fallback = true;
     // The fallback's cheap pre-ranking (it keeps the small-K verification tail short and the
     // fallback cheap as the map grows): every eligible stored keyframe is scored by how many of
