@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "io/io_test_util.h"  // ReadText, WriteText
+
 namespace sparseloop::test {
 
 struct CliResult {
@@ -16,9 +18,6 @@ struct CliResult {
 
 // The intrinsics of the castle-P30 images (real data: castle_p30_768) as --intrinsics takes them.
 inline constexpr const char* kCastleIntrinsics = "689.87,691.04,379.798,251.327";
-
-// A whole text file ("" when it cannot be read).
-std::string ReadText(const std::filesystem::path& path);
 
 // RunCli({"eval", "--gt", path}) runs `sparseloop eval --gt path`.
 CliResult RunCli(const std::vector<std::string>& args);
