@@ -105,8 +105,8 @@ void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
   // Each pair's floors are those of the K its record was stored with (PairK): the ranking keeps
   // what passes the lowest, each candidate is then held to its own.
   int lowest_floor = options_.EffectiveMinMatches();
-  for (const PoolEntry& e : pool)
-    lowest_floor = std::min(lowest_floor, options_.EffectiveMinMatches(PairK(e.session)));
+  for (const auto& session_k : prior_k_)
+    lowest_floor = std::min(lowest_floor, options_.EffectiveMinMatches(session_k.second));
   const loop_internal::CandidateRanking ranking = loop_internal::RankCandidates(
       pool.size(), [&](size_t e) -> const PackedKeyframe& { return *pool[e].record; },
       [](size_t e) { return e; }, [&](const PackedKeyframe& r) { return MatchQuery(query, r); },

@@ -72,16 +72,11 @@ size_t LoadSessions(const MapDatabase& map, float fallback_focal_px, int64_t ski
     std::vector<KeyframeRecord> records;
     records.reserve(stored.size());
     for (const auto& s : stored) records.push_back(FromStoredKeyframe(s, fallback_focal_px));
-    size_t most = 0;
-    for (const KeyframeRecord& k : records) most = std::max(most, k.size());
     loaded += records.size();
+    // A session stored at another K is matched with the floors of its own K (LoopDetector::PairK).
     sink->AddPriorKeyframes(session, std::move(records));
-    // A session stored at another K is matched with the floors of the smaller K
-    // (LoopDetector::Options::EffectiveMinInliers(k)).
-    Logger().info(
-        "{}: loaded session {} ({} keyframes, up to {} features each) for multi-session "
-        "detection",
-        map.path().string(), session, stored.size(), most);
+    Logger().info("{}: loaded session {} ({} keyframes) for multi-session detection",
+                  map.path().string(), session, stored.size());
   }
   return loaded;
 }

@@ -395,6 +395,18 @@ TEST(LoopDetector, WeakPairsNeedTheAgreementOfTheKeyframeBefore) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
+// A search area of radius 1 raw unit alone (no uncertainty area, no path-ratio filter): a revisit
+// whose raw pose drifted away lies outside it.
+LoopDetector::Options RadiusOnly(SearchStrategy strategy, int exclude_recent) {
+  LoopDetector::Options o;
+  o.search.strategy = strategy;
+  o.search.radius = 1.0;
+  o.search.exclude_recent = exclude_recent;
+  o.search.drift_rate = 0.0;
+  o.min_path_ratio = 0;
+  return o;
+}
+
 // Appearance fallback: the drifted raw pose puts the revisit far from its first visit,
 // so the search area (a radius here) holds no candidate; the fallback ranks every stored keyframe
 // and finds the same loop as a global (brute-force) search does, reported as kAppearance.
@@ -404,12 +416,7 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
   for (uint64_t seed : {2, 3, 4, 5, 6}) frames.push_back(Textured(seed));
   frames.push_back(Shifted(place));  // 6: the revisit of 0
   auto run = [&](SearchStrategy strategy, bool fallback) {
-    LoopDetector::Options o;
-    o.search.strategy = strategy;
-    o.search.radius = 1.0;
-    o.search.exclude_recent = 2;
-    o.search.drift_rate = 0.0;  // the radius alone: the drifted revisit is outside it
-    o.min_path_ratio = 0;
+    LoopDetector::Options o = RadiusOnly(strategy, 2);
     o.appearance_fallback = fallback;
     LoopDetector detector(o);
     LoopResult last;
@@ -455,12 +462,7 @@ TEST(LoopDetector, AppearanceFallbackFindsWhatGlobalSearchFinds) {
 TEST(LoopDetector, AppearanceFallbackTakesNoWeakPairs) {
   const std::vector<cv::Mat> frames = RevisitInTwoKeyframes();
   auto run = [&](SearchStrategy strategy) {
-    LoopDetector::Options o;
-    o.search.strategy = strategy;
-    o.search.radius = 1.0;
-    o.search.exclude_recent = 3;
-    o.search.drift_rate = 0.0;  // the radius alone: the drifted revisit is outside it
-    o.min_path_ratio = 0;
+    LoopDetector::Options o = RadiusOnly(strategy, 3);
     o.features.max_features = 15;
     o.small_k_floor = 15;  // floor = K: every pair below is weak
     o.weak_pairs = true;
