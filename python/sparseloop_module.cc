@@ -53,9 +53,10 @@ py::array_t<double, py::array::c_style | py::array::forcecast> ArrayArgument(
     if (o.is_none()) throw py::cast_error("None");
     return o.cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
   } catch (const py::cast_error&) {
-    throw std::invalid_argument(fmt::format("{}: expected numbers (a list or numpy array), got {}",
-                                            name, py::repr(o).cast<std::string>()));
+  } catch (const py::error_already_set&) {  // numpy's own error, e.g. a string in the list
   }
+  throw std::invalid_argument(fmt::format("{}: expected numbers (a list or numpy array), got {}",
+                                          name, py::repr(o).cast<std::string>()));
 }
 
 // The key path of the first float in `o` that is NaN or infinite ("detector.min_path_ratio"), or
@@ -144,13 +145,20 @@ Sim3d PoseFromMatrix(const py::array_t<double, py::array::c_style | py::array::f
   return Sim3d(scale, nearest.rotation, t);
 }
 
-// A pose argument: a 4x4 / 3x4 array, or a tuple (R 3x3, t 3[, scale]).
+// True when `o` is a tuple or list (R, t[, scale]): two or three items, the first a 2-D block. A
+// nested list of rows ([[1, 0, 0, 0], ...], 3 or 4 rows) is a matrix instead.
+bool IsRotationTranslationTuple(const py::object& o, const std::string& name) {
+  if (!py::isinstance<py::tuple>(o) && !py::isinstance<py::list>(o)) return false;
+  const py::sequence s = o.cast<py::sequence>();
+  if (s.size() != 2 && s.size() != 3) return false;
+  return ArrayArgument(s[0], name + "[0]").ndim() == 2;
+}
+
+// A pose argument: a 4x4 / 3x4 array or nested list, or a tuple (R 3x3, t 3[, scale]).
 std::optional<Sim3d> PoseFromPython(const py::object& o, const std::string& name) {
   if (o.is_none()) return std::nullopt;
-  if (py::isinstance<py::tuple>(o) || py::isinstance<py::list>(o)) {
+  if (IsRotationTranslationTuple(o, name)) {
     const py::sequence s = o.cast<py::sequence>();
-    if (s.size() != 2 && s.size() != 3)
-      throw std::invalid_argument(name + ": a pose tuple must be (R, t) or (R, t, scale)");
     const auto r = s[0].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     const auto t = s[1].cast<py::array_t<double, py::array::c_style | py::array::forcecast>>();
     if (r.ndim() != 2 || r.shape(0) != 3 || r.shape(1) != 3 || t.size() != 3)
@@ -474,7 +482,8 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
            py::arg("mapped_pixels") = py::none(), py::arg("mapped_depths") = py::none(),
            py::arg("odometry_covariance") = py::none(), py::arg("pose_reset") = false,
            "Detects a loop for the keyframe (uint8 (H, W) image; intrinsics (fx, fy, cx, cy); "
-           "pose: 4x4 world_from_cam or (R, t[, scale]); None = tracking lost) and queues it for "
+           "pose: 4x4 or 3x4 world_from_cam, array or nested list, or (R, t[, scale]); None = "
+           "tracking lost) and queues it for "
            "the background solve. odometry_covariance: (6, 6) covariance of the raw step from the "
            "previous keyframe with a pose, order [translation, rotation] (None: the default "
            "model). pose_reset=True: the vSLAM re-initialised, this pose is in a new world frame "

@@ -94,17 +94,28 @@ def test_bad_input_raises_with_the_library_message():
         closing.add_keyframe(**blank(0, pose=np.diag([1.0, 2.0, 1.0, 1.0])))
     event = closing.add_keyframe(**blank(1, pose=(np.eye(3), np.zeros(3))))
     assert event["status"] == "no_features" and event["in_graph"]
+    # Nested lists are matrices, as numpy arrays are: 4 rows, or 3 rows of [R | t].
+    rows = [[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]
+    closing.add_keyframe(**blank(2, pose=rows + [[0.0, 0.0, 0.0, 1.0]]))
+    closing.add_keyframe(**blank(3, pose=rows))
+    assert np.allclose(closing.corrected_pose(3)[:3, 3], [0.5, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"pose: a pose must be a 4x4 or 3x4 matrix"):
+        closing.add_keyframe(**blank(4, pose=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+    with pytest.raises(ValueError, match=r"pose: expected numbers .* got 'abc'"):
+        closing.add_keyframe(**blank(4, pose="abc"))
+    with pytest.raises(ValueError, match=r"R of shape \(3, 3\) and t of 3 values"):
+        closing.add_keyframe(**blank(4, pose=(np.eye(3), [0.0, 0.0])))
     with pytest.raises(ValueError, match=r"shape \(6, 6\)"):
-        closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=np.eye(3))
+        closing.add_keyframe(**blank(4, pose=np.eye(4)), odometry_covariance=np.eye(3))
     with pytest.raises(ValueError, match="odometry_covariance: odometry covariance must be positive"):
-        closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=-np.eye(6))
-    closing.add_keyframe(**blank(2, pose=np.eye(4)), odometry_covariance=np.eye(6) * 1e-4)
+        closing.add_keyframe(**blank(4, pose=np.eye(4)), odometry_covariance=-np.eye(6))
+    closing.add_keyframe(**blank(4, pose=np.eye(4)), odometry_covariance=np.eye(6) * 1e-4)
     # Ids must increase: the C++ check's message, unchanged.
     with pytest.raises(ValueError, match=r"keyframe id 1 must be greater than the previous"):
         closing.add_keyframe(**blank(1))
     closing.finish()
     with pytest.raises(ValueError):
-        closing.add_keyframe(**blank(3))
+        closing.add_keyframe(**blank(5))
 
 
 def test_arguments_are_validated_as_the_cli_reads_files():

@@ -289,8 +289,13 @@ int RunRender(int argc, char** argv) {
   Parse(app, argc, argv);
   const std::vector<std::string> files = {"poses_gt.txt", "poses_raw.txt", "raw_scale.txt",
                                           "poses.txt",    "times.txt",     "render.json"};
-  CheckOutputsAreNotInputs(FilesIn("--out", f.out_dir, files),
-                           {{"--trajectory", f.trajectory_path}, {"--raw", f.raw_path}});
+  // The frame folders too: `--textures DIR/image_0 --out DIR` would write frames over textures.
+  std::vector<NamedPath> outputs = FilesIn("--out", f.out_dir, files);
+  for (const NamedPath& folder : FilesIn("--out", f.out_dir, {"", "image_0", "mapped", "depth_0"}))
+    outputs.push_back(folder);
+  CheckOutputsAreNotInputs(
+      outputs,
+      {{"--trajectory", f.trajectory_path}, {"--raw", f.raw_path}, {"--textures", f.textures_dir}});
   CheckOutputDirFlag("--out", f.out_dir, files);
   f.out_dir = ResolvedPath(f.out_dir).string();  // DIR/missing/.. is DIR
   ApplyRenderFlags(&f);

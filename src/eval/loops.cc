@@ -103,6 +103,13 @@ std::vector<std::string> SplitCsv(const std::string& line) {
   return out;
 }
 
+// True when `record` ends inside a quoted field: an odd number of quotes (a doubled quote inside a
+// field counts two). Such a record goes on on the next line (RFC 4180: a quoted field may hold a
+// line end, as loops.csv writes an image name holding one).
+bool EndsInsideQuotes(const std::string& record) {
+  return std::count(record.begin(), record.end(), '"') % 2 == 1;
+}
+
 bool ParseInt(const std::string& s, int64_t& value) {
   const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
   return ec == std::errc() && ptr == s.data() + s.size() && !s.empty();
@@ -154,13 +161,19 @@ void ReadCsv(
     line = std::string(lines[next++]);
     ++line_no;
     if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    const int record_line = line_no;
+    while (EndsInsideQuotes(line) && next < lines.size()) {
+      line += '\n';
+      line += lines[next++];
+      ++line_no;
+    }
     const auto fields = SplitCsv(line);
     if (fields.size() != header.size()) {
-      throw FileError(path.string(), line_no,
+      throw FileError(path.string(), record_line,
                       fmt::format("{} comma-separated fields", header.size()),
                       fmt::format("{}", fields.size()));
     }
-    row(fields, line_no);
+    row(fields, record_line);
   }
 }
 

@@ -198,7 +198,7 @@ void AddSearchKeys(KeyList& k) {
   k.Add(s + "motion_lookback", SL_FIELD(detector.search.motion_lookback), "keyframes",
         "how far back to look for a motion of at least min_motion");
   k.Add(s + "refit_growth", SL_FIELD(detector.search.refit_growth), "fraction",
-        "trajectory growth that triggers a plane refit and grid rebuild (> 0)");
+        "trajectory growth that triggers a plane refit and grid rebuild, (0, 1]");
   k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
         "grid cell size (0: 4x the mean in-plane step; >= 0; a given size is kept between 1/16 "
         "of that and the trajectory's extent)");

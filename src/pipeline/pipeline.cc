@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"
+#include "sparseloop/io/mapped_pixels.h"
 #include "sparseloop/map/map_database.h"
 #include "sparseloop/pipeline/dataset_source.h"
 #include "sparseloop/pipeline/map_records.h"
@@ -121,25 +120,10 @@ std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFr
 }
 
 MappedPixels ReadMappedPixels(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw FileError(path.string(), 0, "a readable mapped-pixels file");
   MappedPixels out;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream ss(line);
-    double u, v, d;
-    std::string extra;
-    if (!(ss >> u >> v >> d) || (ss >> extra)) {
-      throw FileError(path.string(), line_no, "3 numbers 'u v depth'", "'" + line + "'");
-    }
-    if (!std::isfinite(u) || !std::isfinite(v) || !std::isfinite(d)) {
-      throw FileError(path.string(), line_no, "finite numbers", "'" + line + "'");
-    }
-    out.pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
-    out.depths.push_back(static_cast<float>(d));
+  for (const MappedPixelRow& row : ReadMappedPixelRows(path)) {
+    out.pixels.emplace_back(row.u, row.v);
+    out.depths.push_back(row.depth);
   }
   return out;
 }

@@ -242,8 +242,10 @@ void SearchAreaOptions::Check() const {
   SL_CHECK_MSG(min_motion > 0.0 && std::isfinite(min_motion),
                "min_motion must be finite and > 0, got {}", min_motion);
   SL_CHECK_MSG(motion_lookback >= 1, "motion_lookback must be >= 1, got {}", motion_lookback);
-  SL_CHECK_MSG(refit_growth > 0.0 && std::isfinite(refit_growth),
-               "refit_growth must be finite and > 0, got {}", refit_growth);
+  // Above 1 the plane fitted to the first few keyframes (3 points, often on a line) would serve
+  // for most of the run: the grid would stop following the trajectory.
+  SL_CHECK_MSG(refit_growth > 0.0 && refit_growth <= 1.0, "refit_growth must be in (0, 1], got {}",
+               refit_growth);
   SL_CHECK_MSG(cell_size >= 0.0 && std::isfinite(cell_size),
                "cell_size must be finite and >= 0 (0 = automatic), got {}", cell_size);
 }

@@ -82,6 +82,14 @@ TEST(CliInputsKept, AnOutputThatIsAnInputIsRefusedInEveryCommand) {
   ExpectExit2Naming(RunCli({"render", "--world", "street", "--trajectory",
                             (dir / "poses_gt.txt").string(), "--out", out}),
                     {"--out", "poses_gt.txt", "--trajectory"});
+  // A texture folder that is --out or one of the folders render writes frames into.
+  WriteCreatingFolder(dir / "image_0" / "000000.png", "texture\n");
+  for (const fs::path& textures : {dir, dir / "image_0", dir / "image_0" / "."}) {
+    ExpectExit2Naming(RunCli({"render", "--world", "aerial", "--frames", "2", "--textures",
+                              textures.string(), "--out", out}),
+                      {"--out", "--textures"});
+  }
+  EXPECT_EQ(ReadText(dir / "image_0" / "000000.png"), "texture\n");
   EXPECT_EQ(ReadText(gt), before);
   EXPECT_EQ(ReadText(dir / "trajectory.txt"), "gt kept\n");
 }

@@ -223,6 +223,36 @@ TEST(ReadDetections, QuotedImageNamesBomAndCrOnlyLinesReadBack) {
   EXPECT_EQ(d[1].match, 2);
 }
 
+// A quoted image name holding a line end (as CsvField writes it) continues on the next physical
+// line; a row after it is numbered by its own first line in errors.
+TEST(ReadDetections, AQuotedNameMaySpanLines) {
+  const auto dir = test::TempDir();
+  const auto path = dir / "loops.csv";
+  std::ofstream(path, std::ios::binary) << "query,match,score,query_image,match_image\n"
+                                        << "5,1,0.5,\"two\nlines.png\",b.png\n"
+                                        << "6,2,0.25,\"a\r\n\"\"b\"\"\n.png\",d.png\n"
+                                        << "7,x,0.1,e.png,f.png\n";
+  try {
+    ReadDetections(path);
+    ADD_FAILURE() << "no error";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.line(), 7) << e.what();  // the row of frame 7 starts on line 7
+    EXPECT_NE(std::string(e.what()).find("'x'"), std::string::npos) << e.what();
+  }
+  std::ofstream(path, std::ios::binary) << "query,match,score,query_image,match_image\n"
+                                        << "5,1,0.5,\"two\nlines.png\",b.png\n"
+                                        << "6,2,0.25,\"a\r\n\"\"b\"\"\n.png\",d.png\n";
+  const auto d = ReadDetections(path);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[0].query, 5);
+  EXPECT_EQ(d[1].query, 6);
+  EXPECT_EQ(d[1].match, 2);
+  // An unclosed quote at the end of the file is a row with too few fields, not a hang.
+  std::ofstream(path, std::ios::binary) << "query,match,score,query_image,match_image\n"
+                                        << "5,1,0.5,\"open.png,b.png\n";
+  EXPECT_THROW(ReadDetections(path), FileError);
+}
+
 TEST(ReadDetections, ReadsTheAcceptedColumnEmptyMeaningNot) {
   const auto dir = test::TempDir();
   const auto path = dir / "loops.csv";

@@ -307,6 +307,10 @@ TEST(SearchAreaOptions, CheckAndCallerErrors) {
   o = {};
   o.refit_growth = 0.0;
   EXPECT_THROW(o.Check(), std::invalid_argument);
+  o.refit_growth = 1.5;  // the plane of the first 3 keyframes would serve for most of a run
+  EXPECT_THROW(o.Check(), std::invalid_argument);
+  o.refit_growth = 1.0;
+  EXPECT_NO_THROW(o.Check());
   SearchArea area(SearchAreaOptions{});
   area.Add(4, Eigen::Vector3d::Zero());
   EXPECT_THROW(area.Add(4, Eigen::Vector3d::Ones()), std::invalid_argument);

@@ -92,8 +92,9 @@ Trajectory MatchRawPosesToFrames(const Dataset& dataset, const Trajectory& raw, 
 std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> MatchStepCovariancesToFrames(
     const Dataset& dataset, const std::vector<StepCovariance>& covariances, double max_dt);
 
-// Mapped pixels as written by `sparseloop render` (DIR/mapped/NNNNNN.txt: "u v depth" per line,
-// depth <= 0 unknown). Throws FileError on a malformed file.
+// Mapped pixels as written by `sparseloop render` (DIR/mapped/NNNNNN.txt, read by
+// ReadMappedPixelRows: "u v depth" per line, depth <= 0 unknown). Throws FileError on a malformed
+// file.
 struct MappedPixels {
   std::vector<cv::Point2f> pixels;
   std::vector<float> depths;

@@ -85,7 +85,8 @@ struct SearchAreaOptions {
   // least `min_motion` when defining the motion direction (resp. the backward fallback ray).
   int motion_lookback = 5;
   // Relative growth of the trajectory that triggers a plane refit and grid rebuild
-  // (dimensionless, > 0; 0.25 = when it has grown by 25 %). Keeps Add() amortised O(1).
+  // (dimensionless, (0, 1]; 0.25 = when it has grown by 25 %). Keeps Add() amortised O(1) and
+  // the plane and grid fitted to the trajectory as it is.
   double refit_growth = 0.25;
   // Grid cell (world units; 0: 4x the mean in-plane step). A given size is kept between 1/16 of
   // the automatic one (a ray's cost is bounded) and the trajectory's extent in the plane.
