@@ -1,11 +1,13 @@
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/output_paths.h"
 
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstring>
 #include <stdexcept>
 
@@ -45,6 +47,33 @@ TEST(AtomicFile, WriterExceptionKeepsOldContentAndRemovesTemporary) {
                std::runtime_error);
   EXPECT_EQ(test::ReadText(path), "old");
   EXPECT_EQ(CountEntries(dir), 1u);
+}
+
+// A write the file system refuses part-way (a full disk, a quota) is a FileError with the system's
+// reason (it said "stream error"), and the old file stays. A full file system needs root to make;
+// the file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored) fails the same write() the same way, EFBIG.
+TEST(AtomicFile, AWriteTheSystemRefusesNamesItsReasonAndKeepsTheOldFile) {
+  const auto dir = test::TempDir();
+  const auto path = test::WriteText(dir / "out.txt", "old");
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &before), 0);
+  rlimit limited = before;
+  limited.rlim_cur = 4096;
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  std::string message;
+  try {
+    WriteFileAtomically(path, [](std::ostream& os) { os << std::string(1 << 20, 'x'); });
+  } catch (const FileError& e) {
+    message = e.what();
+  }
+  ::setrlimit(RLIMIT_FSIZE, &before);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_NE(message.find(std::strerror(EFBIG)), std::string::npos) << message;
+  EXPECT_NE(message.find("out.txt"), std::string::npos) << message;
+  EXPECT_EQ(message.find("stream error"), std::string::npos) << message;
+  EXPECT_EQ(test::ReadText(path), "old");
+  EXPECT_EQ(CountEntries(dir), 1u);  // the temporary is gone
 }
 
 TEST(AtomicFile, MissingDirectoryIsFileErrorNamingThePath) {
