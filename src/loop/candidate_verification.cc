@@ -1,5 +1,5 @@
 // LoopDetector: candidates matched, ranked and verified; the gates a verified pair passes
-// (pose-prior rotation, weak pairs, continuity, temporal) and the state they read; ANN voting.
+// (pose-prior rotation, weak pairs, continuity) and the state they read; ANN voting.
 #include "sparseloop/loop/loop_detector.h"
 
 #include <algorithm>
@@ -236,14 +236,6 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
                                       std::optional<size_t>* support, LoopResult* trial) {
   const KeyframeRecord& match = Stored(match_index);
   VerificationResult v = VerifyPair(query, match, matches, verify);
-  // Depths the detector triangulated for the match (Options::stored_depths_window) cover part
-  // of its K: when PnP on them falls short, the two-view verification as without them.
-  if (!v.success && options_.stored_depths_window > 0 && !query.has_depths() &&
-      match.has_depths()) {
-    KeyframeRecord two_view = match;
-    two_view.depths.clear();
-    v = VerifyPair(query, two_view, matches, verify);
-  }
   int map_points = 0, map_inliers = 0;
   PoseSources sources;
   if (v.success && v.pose_kind == RelativePoseKind::kSE3UnitTranslation &&
@@ -286,13 +278,6 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
   if (status == LoopStatus::kDetected && options_.continuity_check && !query.has_pose &&
       ContinuesRecentView(query, query_index, match_index, trial->inliers, verify)) {
     status = LoopStatus::kRejectedByTemporal;
-  }
-  if (status == LoopStatus::kDetected && options_.temporal_check) {
-    const bool confirmed =
-        last_verified_ && std::llabs(static_cast<int64_t>(last_verified_->second) -
-                                     static_cast<int64_t>(match_index)) <= options_.temporal_window;
-    last_verified_ = std::make_pair(query_index, match_index);
-    if (!confirmed) status = LoopStatus::kRejectedByTemporal;
   }
   return status;
 }

@@ -108,8 +108,6 @@ void LoopDetector::Options::Check() const {
   SL_CHECK_MSG(overlap_features >= 0 && overlap_window >= 1,
                "overlap_features must be >= 0 and overlap_window >= 1, got {} and {}",
                overlap_features, overlap_window);
-  SL_CHECK_MSG(stored_depths_window >= 0, "stored_depths_window must be >= 0 keyframes, got {}",
-               stored_depths_window);
   SL_CHECK_MSG(consistency_base_deg >= 0 && consistency_per_keyframe_deg >= 0 &&
                    two_view_consistency_per_keyframe_deg >= 0 &&
                    consistency_max_deg >= consistency_base_deg,
@@ -137,7 +135,6 @@ void LoopDetector::Options::Check() const {
                "pose_jump_max_scale must be >= 1 (0: off), got {}", pose_jump_max_scale);
   SL_CHECK_MSG(agreement_window >= 1, "agreement_window must be >= 1 keyframe, got {}",
                agreement_window);
-  SL_CHECK_MSG(temporal_window >= 0, "temporal_window must be >= 0, got {}", temporal_window);
   SL_CHECK_MSG(std::isfinite(small_k_fraction) && small_k_fraction > 0 && small_k_fraction <= 1,
                "small_k_fraction must be in (0, 1], got {}", small_k_fraction);
   SL_CHECK_MSG(small_k_floor >= 5, "small_k_floor must be >= 5, got {}", small_k_floor);
@@ -220,40 +217,10 @@ size_t LoopDetector::StoredBytes() const {
   return total;
 }
 
-void LoopDetector::TriangulateStoredDepths(const KeyframeRecord& whole, KeyframeRecord* stored,
-                                           LoopResult* result) {
-  const TriangulationOptions& tri_options = options_.local_map.triangulation;
-  auto with_depth = [](const KeyframeRecord& r) {
-    return std::count_if(r.depths.begin(), r.depths.end(), [](float d) { return d > 0; });
-  };
-  // This keyframe's K against the whole extractions of the keyframes before it.
-  std::vector<const KeyframeRecord*> before;
-  for (const DepthBufferEntry& e : depth_buffer_) before.push_back(&e.whole);
-  const TriangulationResult tri = TriangulateFromNeighbours(*stored, before, tri_options);
-  if (tri.triangulated >= kMinStoredDepths) stored->depths = tri.depths;
-  // The keyframes before it, with this one now after them: a keyframe's points are seen from
-  // both sides once the next keyframes arrive; their stored record is packed again when more of
-  // its K have a depth (LoopResult::updated_records).
-  for (DepthBufferEntry& e : depth_buffer_) {
-    std::vector<const KeyframeRecord*> around = {&whole};
-    for (const DepthBufferEntry& o : depth_buffer_)
-      if (&o != &e) around.push_back(&o.whole);
-    KeyframeRecord bare = e.stored;
-    bare.depths.clear();
-    const TriangulationResult t = TriangulateFromNeighbours(bare, around, tri_options);
-    if (t.triangulated < kMinStoredDepths || t.triangulated <= with_depth(e.stored)) continue;
-    e.stored.depths = t.depths;
-    records_[e.index] = PackRecord(e.stored);
-    result->updated_records.push_back(e.stored.id);
-  }
-  ClearCallCaches();
-}
-
 size_t LoopDetector::RecentBufferBytes() const {
   size_t total = 0;
   for (const auto& d : recent_) total += d.size() * sizeof(Descriptor);
   for (const auto& [index, d] : overlap_buffer_) total += d.size() * sizeof(Descriptor);
-  for (const DepthBufferEntry& e : depth_buffer_) total += e.whole.Bytes() + e.stored.Bytes();
   return total;
 }
 
@@ -363,7 +330,6 @@ void LoopDetector::MergeSubSearch(LoopResult sub, CandidateSource source, LoopRe
   result->timings.verify_ms += sub.timings.verify_ms;
   if (!sub.detected()) return;
   sub.timings = result->timings;
-  sub.updated_records = std::move(result->updated_records);
   sub.source = source;
   sub.candidates = result->candidates;
   sub.overlap_excluded = result->overlap_excluded;
@@ -502,10 +468,6 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   query.has_pose = input.world_from_cam.has_value();
   if (query.has_pose) query.world_from_cam = *input.world_from_cam;
   KeyframeRecord stored = StoredSubset(query, StoredOrder(query), options_.features.max_features);
-  const bool own_depths =
-      options_.stored_depths_window > 0 && query.has_pose && !query.has_depths() && !relocalize;
-  if (!own_depths || reset != PoseReset::kNone) depth_buffer_.clear();
-  if (own_depths) TriangulateStoredDepths(query, &stored, &result);
   PackedKeyframe rec = PackRecord(stored);
   if (options_.repeatability_window > 0) {
     recent_.push_back(query.descriptors);
@@ -533,11 +495,6 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
     last_pose_ = pose;
   }
   const size_t index = Store(std::move(rec), relocalize);
-  if (own_depths) {
-    depth_buffer_.push_back({index, query, std::move(stored)});  // (the query is matched below)
-    if (depth_buffer_.size() > static_cast<size_t>(options_.stored_depths_window))
-      depth_buffer_.pop_front();
-  }
   if (!query.has_pose && OverlapBufferUsed(query)) {
     const size_t n = std::min(query.size(), static_cast<size_t>(options_.overlap_features));
     overlap_buffer_.emplace_back(

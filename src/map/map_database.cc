@@ -424,18 +424,6 @@ int MapDatabase::StepRecord(const char* sql, int64_t session, const PackedKeyfra
   return st.Step();
 }
 
-void MapDatabase::UpdateRecord(int64_t session, const PackedKeyframe& record) {
-  const int rc =
-      StepRecord("UPDATE keyframes SET timestamp = ?3, record = ?4 WHERE session = ?1 AND id = ?2",
-                 session, record);
-  if (rc != SQLITE_DONE) {
-    throw MapDatabaseError(path_.string() + ": cannot update keyframe: " + sqlite3_errmsg(db_));
-  }
-  SL_CHECK_MSG(sqlite3_changes(db_) == 1, "keyframe id {} is not stored in session {}", record.id(),
-               session);
-  MaybeCommit();
-}
-
 void MapDatabase::PutRecord(int64_t session, const PackedKeyframe& record) {
   const int rc = StepRecord(
       "INSERT INTO keyframes(session, id, timestamp, record) VALUES(?1,?2,?3,?4)", session, record);

@@ -343,9 +343,6 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "no pose: recent keyframes whose extraction the walk's buffer keeps (>= 1)");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
-  k.Add(d + "stored_depths_window", SL_FIELD(detector.stored_depths_window), "keyframes",
-        "without vSLAM depths: the stored K are triangulated with this many keyframes' whole "
-        "extractions each side (0: off)");
   k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "steps",
         "reject a metric loop whose query is farther than this many raw steps (mean around the "
         "match) from it (0: off)");
@@ -367,10 +364,6 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "rotation gate: growth per keyframe of odometry (two-view pose)");
   k.Add(d + "consistency_max_deg", SL_FIELD(detector.consistency_max_deg), "deg",
         "rotation gate: largest tolerance");
-  k.Add(d + "temporal_check", SL_FIELD(detector.temporal_check), "",
-        "accept only when the previous check also matched nearby");
-  k.Add(d + "temporal_window", SL_FIELD(detector.temporal_window), "keyframes",
-        "temporal check: how near the previous match must be");
   k.AddEnum(
       d + "retrieval", SL_FIELD(detector.retrieval),
       {CandidateRetrieval::kBruteForce, CandidateRetrieval::kAnn},

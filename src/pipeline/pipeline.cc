@@ -288,11 +288,7 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
       first_in_graph = false;
     }
     const PackedKeyframe& stored = closing.detector().packed_record(frame.index);
-    if (map) {
-      map->PutRecord(result.map_session, stored);
-      for (const int64_t id : event.result.updated_records)
-        map->UpdateRecord(result.map_session, closing.detector().packed_record(id));
-    }
+    if (map) map->PutRecord(result.map_session, stored);
     LoopResult& r = event.result;
     if (r.detected() && r.match_session == 0) {
       result.loops.push_back(r);
@@ -304,7 +300,6 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
     if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
   }
   result.detect_seconds = detect_timer.ElapsedMs() / 1000.0;
-  // The records as they are now (detector.stored_depths_window packs recent ones again).
   size_t bytes = 0;
   for (const auto& [id, row] : row_of_id) bytes += closing.detector().packed_record(id).Bytes();
   if (!row_of_id.empty()) result.bytes_per_keyframe = double(bytes) / row_of_id.size();

@@ -250,32 +250,6 @@ TEST(LoopDetector, OverlapBufferIsBounded) {
   EXPECT_THROW(bad.Check(), std::invalid_argument);
 }
 
-// Options::stored_depths_window: the whole extractions of at most that many recent keyframes
-// with a pose and without depths are kept; a keyframe without a pose empties the buffer.
-TEST(LoopDetector, StoredDepthsBufferIsBoundedAndCleared) {
-  LoopDetector::Options o;
-  o.stored_depths_window = 3;
-  LoopDetector detector(o);
-  std::vector<size_t> bytes;
-  for (int64_t i = 0; i < 8; ++i) {
-    KeyframeInput in = Input(i, Textured(200 + static_cast<uint64_t>(i)));
-    in.world_from_cam =
-        Sim3d(1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1 * double(i), 0, 0));
-    detector.Process(in);
-    bytes.push_back(detector.RecentBufferBytes());
-  }
-  EXPECT_GT(bytes[0], 0u);
-  EXPECT_LT(bytes[0], bytes[2]);
-  // From the fourth keyframe on the buffer holds three (same-size extractions of textures).
-  for (size_t i = 3; i < bytes.size(); ++i)
-    EXPECT_NEAR(double(bytes[i]), double(bytes[2]), 0.2 * double(bytes[2]));
-  detector.Process(Input(8, Textured(300)));  // no pose
-  EXPECT_EQ(detector.RecentBufferBytes(), 0u);
-  LoopDetector::Options bad;
-  bad.stored_depths_window = -1;
-  EXPECT_THROW(bad.Check(), std::invalid_argument);
-}
-
 // Repeatability ranking: a keyframe stores first the features the keyframe before
 // re-finds. Keyframe 1 is keyframe 0 moved a little plus transient high-contrast blobs (strong
 // corners that no other keyframe sees): ranked by response its K are mostly blob corners, ranked

@@ -450,20 +450,6 @@ TEST(MapDatabase, StoredBytesArePackedKeyframeBytes) {
   const int64_t s2 = map->BeginSession("t");
   map->PutRecord(s2, packed);  // the same id in another session is a different keyframe
   EXPECT_EQ(map->LoadRecordBytes(s2, 4), map->LoadRecordBytes(s, 4));
-  // UpdateRecord replaces one session's bytes of a stored keyframe (the detector packed it again:
-  // LoopResult::updated_records) and refuses a keyframe that is not stored, changing nothing.
-  const PackedKeyframe repacked =
-      PackedKeyframe::Pack(ToFields(MakeRandomKeyframe(s, 4, 15, true, 11u)));
-  ASSERT_NE(map->LoadRecordBytes(s, 4),
-            std::vector<uint8_t>(repacked.bytes().begin(), repacked.bytes().end()));
-  map->UpdateRecord(s, repacked);
-  EXPECT_EQ(map->LoadRecordBytes(s, 4),
-            std::vector<uint8_t>(repacked.bytes().begin(), repacked.bytes().end()));
-  EXPECT_EQ(map->LoadRecordBytes(s2, 4),
-            std::vector<uint8_t>(packed.bytes().begin(), packed.bytes().end()));
-  const int64_t count = map->CountKeyframes();
-  EXPECT_THROW(map->UpdateRecord(s + 5, repacked), std::invalid_argument);
-  EXPECT_EQ(map->CountKeyframes(), count);
   map->Flush();
   EXPECT_EQ(map->LoadKeyframes(s).size(), 4u);
 }

@@ -62,7 +62,7 @@ enum class LoopStatus {
   kTooFewMatches,          // no candidate has enough descriptor matches
   kTooFewInliers,          // no candidate passed geometric verification
   kRejectedByConsistency,  // verified, but the rotation disagrees with the raw pose prior
-  kRejectedByTemporal,     // verified, but not confirmed by the previous check keyframe
+  kRejectedByTemporal,     // verified, but a weak pair without agreement, or no revisit
 };
 const char* ToString(LoopStatus status);
 
@@ -165,9 +165,6 @@ struct LoopResult {
   bool has_world_from_query = false;
   Sim3d world_from_query;       // valid when has_world_from_query
   bool relocalization = false;  // the query had no pose (or came through Relocalize())
-  // Earlier keyframes whose stored record this call changed (Options::stored_depths_window:
-  // more of their K triangulated with this keyframe); a map that stored them stores them again.
-  std::vector<int64_t> updated_records;
   // Keyframe ids geometrically verified for this query, best-ranked first (at most
   // Options::max_verify per search, stopping at the first loop; without a pose all of them,
   // Options::best_of_verified): those the search area gave, then those the appearance fallback
@@ -344,10 +341,6 @@ class LoopDetector {
     bool weak_pairs = false;
     int weak_min_inliers = 6;
     int agreement_window = 3;
-    // Temporal consistency: accept only when the previous check keyframe also verified a match
-    // within temporal_window keyframes (by index) of this match.
-    bool temporal_check = false;
-    int temporal_window = 3;  // keyframes
     // Candidate retrieval. kAnn: a keyframe enters the index once the search area may return it
     // (older than search.exclude_recent), votes only count for keyframes the search area (and
     // min_path_ratio) allow, and the ann.max_candidates top-voted go to matching + verification.
@@ -436,20 +429,6 @@ class LoopDetector {
       void Check() const;
     };
     LocalMapOptions local_map;
-    // Depths for the stored K when the vSLAM gives none (the paper keeps features at mapped
-    // points, points with a depth). Each keyframe with a pose and without depths keeps
-    // its whole extraction for the next stored_depths_window keyframes; its K stored features
-    // are triangulated (local_map.triangulation: parallax, reprojection, relative poses from the
-    // images where they fix them, else raw) against the whole extractions of the window's keyframes
-    // before it and, as they arrive, after it (the record is packed again when more of its K get a
-    // depth: LoopResult::updated_records). A later loop to it is then PnP of the query against the
-    // match's points (metric, in the match's raw units) instead of a two-view direction; when
-    // PnP falls short the two-view verification runs as before. Memory: the window's whole
-    // extractions (RecentBufferBytes), and 2 B per stored feature. Experimental, off by default:
-    // at 4 it closes the castle ring at K = 15 under drift (29 -> 02 PnP), but it is sensitive
-    // to the window and on renders without depths it loses loops (docs/DETECTOR.md "Stored
-    // depths from the detector's own triangulation"). Keyframes, >= 0 (0: off).
-    int stored_depths_window = 0;
     uint64_t seed = 42;  // copied into verify.seed
     void Check() const;
     // The inlier threshold actually applied: max(SmallK(verify.min_inliers),
@@ -490,8 +469,8 @@ class LoopDetector {
   // Memory of the ANN retrieval index (0 unless retrieval == kAnn), bytes; not in StoredBytes().
   size_t RetrievalIndexBytes() const { return ann_ ? ann_->Bytes() : 0; }
   // Memory of the bounded buffers of recent extractions (Options::repeatability_window,
-  // Options::overlap_features: descriptor bytes; Options::stored_depths_window: the buffered
-  // records' bytes); not in StoredBytes(), does not grow with the map.
+  // Options::overlap_features: descriptor bytes); not in StoredBytes(), does not grow with the
+  // map.
   size_t RecentBufferBytes() const;
 
   // Query/match against stored records only (no extraction), for benchmarks and tests: matches
@@ -555,7 +534,7 @@ class LoopDetector {
   void SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
                        LoopResult* result, bool weak_pairs = true);
   // One ranked candidate: verification (and the local map), then the gates (rotation, weak
-  // pairs, continuity, temporal). Fills *trial; returns its status.
+  // pairs, continuity). Fills *trial; returns its status.
   LoopStatus TryCandidate(const KeyframeRecord& query, size_t query_index, size_t match_index,
                           const std::vector<DescriptorMatch>& matches, const VerifyOptions& verify,
                           bool weak_enabled, std::optional<size_t>* support, LoopResult* trial);
@@ -652,20 +631,6 @@ class LoopDetector {
   // Options::overlap_features: the first overlap_features descriptors of recent keyframes'
   // extractions (record index, descriptors), oldest first, at most overlap_window of them.
   std::deque<std::pair<size_t, std::vector<Descriptor>>> overlap_buffer_;
-  // Options::stored_depths_window: the recent keyframes' whole extractions and stored subsets
-  // (record index), oldest first.
-  struct DepthBufferEntry {
-    size_t index = 0;
-    KeyframeRecord whole;
-    KeyframeRecord stored;
-  };
-  std::deque<DepthBufferEntry> depth_buffer_;
-  // A stored record takes triangulated depths when at least this many of its K get one.
-  static constexpr int kMinStoredDepths = 3;
-  // Options::stored_depths_window: `stored` (the K of `whole`) triangulated against the buffer,
-  // and the buffer's stored records against `whole` (result->updated_records).
-  void TriangulateStoredDepths(const KeyframeRecord& whole, KeyframeRecord* stored,
-                               LoopResult* result);
   bool OverlapBufferUsed(const KeyframeRecord& query) const {
     return options_.overlap_gap > 0 && options_.overlap_features > options_.features.max_features &&
            static_cast<int>(query.size()) > options_.features.max_features;
@@ -698,7 +663,6 @@ class LoopDetector {
                          size_t query_index, size_t match_index, const LoopResult& trial) const;
   // The mean raw step around the match (Options::loop_distance_window), raw units per keyframe.
   double LocalStep(size_t match_index, size_t query_index) const;
-  std::optional<std::pair<size_t, size_t>> last_verified_;  // (query index, match index)
   // The latest query with a verified pair that passed the rotation gate, weak or not (query
   // index, match index): Options::weak_min_inliers.
   std::optional<std::pair<size_t, size_t>> last_support_;

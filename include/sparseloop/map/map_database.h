@@ -99,10 +99,6 @@ class MapDatabase {
   // Stores `record`'s bytes as they are (the detector's stored record, LoopDetector::
   // packed_record): no unpack / re-pack. Same errors as PutKeyframe.
   void PutRecord(int64_t session, const PackedKeyframe& record);
-  // Replaces the stored bytes of keyframe (session, record.id()) with `record`'s (a record the
-  // detector packed again: LoopResult::updated_records); throws std::invalid_argument when that
-  // keyframe is not stored, leaving the map unchanged.
-  void UpdateRecord(int64_t session, const PackedKeyframe& record);
   void PutLoop(const StoredLoop& loop);
   // Commits pending writes now (also done by the destructor).
   void Flush();
