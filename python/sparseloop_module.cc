@@ -281,9 +281,16 @@ Trajectory TrajectoryFromNumpy(
 
 // PipelineOptions from a config dict (the `--config` keys, strict), then the LoopClosing options
 // that compute what `run` computes (the mapping of tests/runtime/loop_closing_test.cc).
-LoopClosing::Options ClosingOptions(const py::object& config, bool solve_while_running,
-                                    bool optimize) {
+LoopClosing::Options ClosingOptions(const py::object& config, const std::string& preset,
+                                    bool solve_while_running, bool optimize) {
   PipelineOptions p;
+  if (!preset.empty()) {
+    try {
+      ApplyPreset(preset, &p);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("preset: ") + e.what());
+    }
+  }
   if (!config.is_none()) {
     if (py::isinstance<py::str>(config))
       LoadConfigFile(config.cast<std::string>(), &p);
@@ -310,8 +317,8 @@ py::dict CorrectionsToDict(const CorrectedKeyframes& c) {
 // LoopClosing plus the loops it sent to the graph (for loops() / accepted_loops()).
 class PyLoopClosing {
  public:
-  PyLoopClosing(const py::object& config, bool solve_while_running, bool optimize,
-                py::object on_correction) {
+  PyLoopClosing(const py::object& config, const std::string& preset, bool solve_while_running,
+                bool optimize, py::object on_correction) {
     LoopClosing::CorrectionCallback cb;
     if (!on_correction.is_none()) {
       callback_ = std::make_shared<py::object>(std::move(on_correction));
@@ -329,8 +336,8 @@ class PyLoopClosing {
         }
       };
     }
-    closing_ = std::make_unique<LoopClosing>(ClosingOptions(config, solve_while_running, optimize),
-                                             std::move(cb));
+    closing_ = std::make_unique<LoopClosing>(
+        ClosingOptions(config, preset, solve_while_running, optimize), std::move(cb));
   }
   ~PyLoopClosing() {
     py::gil_scoped_release release;  // the destructor joins the thread, whose callback needs it
@@ -472,9 +479,11 @@ PYBIND11_MODULE(_sparseloop, m) {
 The online loop closer (C++ runtime::LoopClosing).
 
 config: None, a dict of `--config` keys ({"detector": {"features": {"max_features": 15}}}) or
-the path of a JSON config file. solve_while_running=False solves once, in finish(), as
+the path of a JSON config file. preset: a shipped preset applied before config ("sparse",
+"dense"; sparseloop.presets()). solve_while_running=False solves once, in finish(), as
 `sparseloop run` does. on_correction(dict) runs on the background thread after each solve.)doc")
-      .def(py::init<const py::object&, bool, bool, py::object>(), py::arg("config") = py::none(),
+      .def(py::init<const py::object&, const std::string&, bool, bool, py::object>(),
+           py::arg("config") = py::none(), py::arg("preset") = "",
            py::arg("solve_while_running") = true, py::arg("optimize") = true,
            py::arg("on_correction") = py::none())
       .def("add_keyframe", &PyLoopClosing::AddKeyframe, py::arg("id"), py::arg("timestamp"),
@@ -512,9 +521,15 @@ the path of a JSON config file. solve_while_running=False solves once, in finish
 
   m.def(
       "default_config",
-      [](const std::string& scope) { return ToPython(DumpConfig(PipelineOptions{}, scope)); },
-      py::arg("scope") = "",
-      "Every config key with its default, plus 'doc' (as `sparseloop config --dump`).");
+      [](const std::string& scope, const std::string& preset) {
+        PipelineOptions options;
+        if (!preset.empty()) ApplyPreset(preset, &options);
+        return ToPython(DumpConfig(options, scope));
+      },
+      py::arg("scope") = "", py::arg("preset") = "",
+      "Every config key with its default (or the preset's value), plus 'doc' (as `sparseloop "
+      "config --dump [--preset NAME]`).");
+  m.def("presets", &PresetNames, "The names of the shipped presets (LoopClosing(preset=...)).");
 
   m.def(
       "read_trajectory",

@@ -42,6 +42,7 @@ run(dpkg-deb -x ${deb} ${root})
 set(usr ${root}/usr)
 set(expected bin/sparseloop include/sparseloop/runtime/loop_closing.h
   share/doc/sparseloop/README.md share/doc/sparseloop/LICENSE share/sparseloop/report.py
+  share/sparseloop/presets/sparse.json share/sparseloop/presets/dense.json
   lib/python3/dist-packages/sparseloop/__init__.py)
 file(GLOB_RECURSE config_file ${usr}/lib/*/sparseloopConfig.cmake)
 if(NOT config_file)

@@ -10,6 +10,7 @@ from ._sparseloop import (  # noqa: F401
     LoopClosing,
     default_config,
     evaluate_trajectory,
+    presets,
     read_image,
     read_mapped_pixels,
     read_trajectory,

@@ -221,3 +221,17 @@ def test_eval_dict_has_known_values(tmp_path):
     with pytest.raises(ValueError):
         sparseloop.evaluate_trajectory(str(tmp_path / "gt.txt"), str(tmp_path / "gt.txt"),
                                        alignment="bogus")
+
+
+def test_presets_configure_the_closer_and_an_unknown_one_is_named():
+    assert sparseloop.presets() == ["dense", "sparse"]
+    sparse = sparseloop.default_config("detector", preset="sparse")
+    assert sparse["detector"]["features"]["max_features"] == 20
+    assert sparse["detector"]["asymmetric_matching"] is True
+    # config goes on top of the preset
+    closing = sparseloop.LoopClosing(preset="sparse", config={"detector": {"check_every": 2}})
+    closing.add_keyframe(**blank(0))
+    closing.finish()
+    with pytest.raises(ValueError, match=r"preset: expected a preset name \(dense \| sparse\), got 'tiny'"):
+        sparseloop.LoopClosing(preset="tiny")
+

@@ -1,4 +1,5 @@
-// sparseloop config --dump [detect|run]: the default --config JSON, every key with a one-line doc.
+// sparseloop config --dump [detect|run] [--preset NAME]: the default (or a preset's) --config JSON,
+// every key with a one-line doc.
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -19,9 +20,14 @@ int RunConfig(int argc, char** argv) {
   app.add_option("command", command, "detect (the detector keys) | run (every key)")
       ->check(CLI::IsMember({"detect", "run"}))
       ->default_str("run");
+  std::string preset;
+  app.add_option("--preset", preset, "the values of a shipped preset instead of the defaults")
+      ->check(CLI::IsMember(PresetNames()));
   Parse(app, argc, argv);
+  PipelineOptions options;
+  if (!preset.empty()) ApplyPreset(preset, &options);
   // `detect` reads the "detector" object of --config, `run` every key.
-  std::cout << DumpConfig(PipelineOptions{}, command == "detect" ? "detector" : "").dump(2) << "\n";
+  std::cout << DumpConfig(options, command == "detect" ? "detector" : "").dump(2) << "\n";
   return 0;
 }
 

@@ -131,6 +131,10 @@ void AddDetectorFlags(CLI::App& app, DetectorFlags* f) {
                  "rosbag: dataset names a pose=TOPIC");
   app.add_option("--intrinsics", f->intrinsics, "fx,fy,cx,cy (required for images:DIR)");
   AddDetectorOverrideFlags(app, &f->detector);
+  app.add_option("--preset", f->preset,
+                 fmt::format("A shipped configuration, applied before --config: {} "
+                             "(docs/FORMATS.md, Presets)",
+                             fmt::join(PresetNames(), " | ")));
   app.add_option("--config", f->config, "JSON configuration (see docs/FORMATS.md)");
   app.add_option("--out", f->out, "Output directory")->required();
   app.add_flag("--quiet", f->quiet, "No progress line");
@@ -174,6 +178,13 @@ void ApplySetFlags(const std::vector<std::string>& set, PipelineOptions* options
 
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
+  if (!flags.preset.empty()) {
+    try {
+      ApplyPreset(flags.preset, &options);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(fmt::format("--preset {}: {}", flags.preset, e.what()));
+    }
+  }
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);
   ApplyDetectorOverrides(flags.detector, &options.detector);
   ApplySetFlags(flags.detector.set, &options);

@@ -35,6 +35,7 @@ struct DetectorFlags {
   std::string poses;       // raw vSLAM poses
   std::string intrinsics;  // fx,fy,cx,cy
   DetectorOverrides detector;
+  std::string preset;  // a shipped preset (PresetNames), applied before --config
   std::string config;  // JSON configuration file
   std::string out;     // output directory
   bool quiet = false;  // no progress line
@@ -51,8 +52,9 @@ void ApplyDetectorOverrides(const DetectorOverrides& overrides, LoopDetector::Op
 // Applies each --set KEY=VALUE in order (ApplyConfigOverride), checking the options after each;
 // std::invalid_argument naming the --set argument.
 void ApplySetFlags(const std::vector<std::string>& set, PipelineOptions* options);
-// Defaults, then --config, then the explicit flags (-K, --search, ...), then each --set in order.
-// True when --dataset is a rosbag: spec naming a pose=TOPIC (raw poses without --poses).
+// Defaults, then --preset, then --config, then the explicit flags (-K, --search, ...), then each
+// --set in order. True when --dataset is a rosbag: spec naming a pose=TOPIC (raw poses without
+// --poses).
 bool DatasetHasPoseTopic(const std::string& dataset_spec);
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags);
 Dataset OpenDatasetFromFlags(const DetectorFlags& flags);

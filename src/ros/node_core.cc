@@ -80,6 +80,13 @@ namespace {
 
 PipelineOptions PipelineOptionsFrom(const NodeParams& params) {
   PipelineOptions p;
+  if (!params.preset.empty()) {
+    try {
+      ApplyPreset(params.preset, &p);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(fmt::format("~preset {}: {}", params.preset, e.what()));
+    }
+  }
   if (!params.config_file.empty()) LoadConfigFile(params.config_file, &p);
   if (!params.config_json.empty()) {
     nlohmann::json j;

@@ -28,8 +28,10 @@ namespace sparseloop::ros_node {
 
 // The node's own parameters (the pipeline's are the config keys, in `config_json`).
 struct NodeParams {
-  // The `--config` keys as a JSON object (the node's ~config parameter) and/or a JSON file
-  // (~config_file; applied first, then config_json on top). Empty: defaults.
+  // A shipped preset (~preset: PresetNames(); applied first), the `--config` keys as a JSON
+  // object (the node's ~config parameter) and/or a JSON file (~config_file; applied after the
+  // preset, then config_json on top). Empty: defaults.
+  std::string preset;
   std::string config_json;
   std::string config_file;
   // true: the pose graph is solved in the background while keyframes come (a correction after

@@ -60,9 +60,9 @@ double PoseKindCode(const std::string& kind) {
 
 // The node's own private parameters; any other private name except config is an error.
 const std::set<std::string> kNodeParams = {
-    "config",      "config_file",     "solve_while_running", "max_pose_dt",       "image_queue",
-    "pose_buffer", "wait_for_points", "trajectory_file",     "loops_file",        "pose_type",
-    "world_frame", "camera_frame",    "image_transport",     "diagnostics_period"};
+    "preset",      "config",      "config_file",     "solve_while_running", "max_pose_dt",
+    "image_queue", "pose_buffer", "wait_for_points", "trajectory_file",     "loops_file",
+    "pose_type",   "world_frame", "camera_frame",    "image_transport",     "diagnostics_period"};
 
 // An integer parameter in [lo, hi], `fallback` when unset. The value is read as given: roscpp
 // stores `_image_queue:=3000000000` as a double, which an int parameter turned into -2147483648.
@@ -125,6 +125,7 @@ class Node {
       }
       p.config_json = ToJson(config, pnh.resolveName("config")).dump();
     }
+    pnh.param<std::string>("preset", p.preset, "");
     pnh.param<std::string>("config_file", p.config_file, "");
     pnh.param("solve_while_running", p.solve_while_running, p.solve_while_running);
     pnh.param("max_pose_dt", p.max_pose_dt, p.max_pose_dt);
@@ -484,8 +485,9 @@ constexpr const char* kUsage =
     "                       [mapped_points:=TOPIC] [_PARAM:=VALUE ...]\n"
     "The sparseloop loop closer as a ROS 1 node (docs/ROS.md); needs a ROS master.\n"
     "Subscribes image, camera_info, pose (~pose_type) and mapped_points; publishes ~loops, ~path,\n"
-    "~markers and /diagnostics; service ~finish. Private parameters: config (a dictionary of\n"
-    "`sparseloop config --dump` keys), config_file, solve_while_running, max_pose_dt,\n"
+    "~markers and /diagnostics; service ~finish. Private parameters: preset (sparse|dense),\n"
+    "config (a dictionary of `sparseloop config --dump` keys), config_file,\n"
+    "solve_while_running, max_pose_dt,\n"
     "image_queue, pose_buffer, wait_for_points, trajectory_file, loops_file, pose_type\n"
     "(pose|pose_cov|odometry|tf), world_frame, camera_frame, image_transport (raw|compressed),\n"
     "diagnostics_period.\n";

@@ -367,3 +367,56 @@ TEST(Config, FormatsDocListsEveryKey) {
 
 }  // namespace
 }  // namespace sparseloop
+
+namespace sparseloop {
+namespace {
+
+// The embedded presets are the files presets/NAME.json (one source, installed beside the binary
+// to share/sparseloop/presets), each with a doc line naming it, each a valid configuration.
+TEST(Presets, EmbeddedAreTheShippedFilesAndEachIsValid) {
+  std::vector<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(test::SourceDir() / "presets"))
+    if (entry.path().extension() == ".json") files.push_back(entry.path().stem().string());
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(PresetNames(), files);
+  for (const std::string& name : PresetNames()) {
+    SCOPED_TRACE(name);
+    std::ifstream in(test::SourceDir() / "presets" / (name + ".json"));
+    EXPECT_EQ(PresetConfig(name), nlohmann::json::parse(in));
+    const std::string doc = PresetConfig(name)["doc"]["preset"].get<std::string>();
+    EXPECT_EQ(doc.rfind(name + ": ", 0), 0u) << doc;
+    PipelineOptions options;
+    ApplyPreset(name, &options);
+    EXPECT_NO_THROW(options.Check());
+  }
+}
+
+// sparse is the paper's design at K = 20; dense is K = 300; neither changes anything else from
+// the defaults, and an unknown name lists the shipped ones.
+TEST(Presets, WhatEachSetsAndAnUnknownName) {
+  PipelineOptions sparse;
+  ApplyPreset("sparse", &sparse);
+  EXPECT_EQ(sparse.detector.features.max_features, 20);
+  EXPECT_TRUE(sparse.detector.asymmetric_matching);
+  EXPECT_TRUE(sparse.detector.weak_pairs);
+  EXPECT_EQ(sparse.detector.repeatability_window, 4);
+  EXPECT_TRUE(sparse.detector.appearance_fallback);
+  PipelineOptions dense;
+  ApplyPreset("dense", &dense);
+  EXPECT_EQ(dense.detector.features.max_features, 300);
+  const nlohmann::json defaults = ConfigToJson(PipelineOptions{});
+  nlohmann::json dense_json = ConfigToJson(dense);
+  dense_json["detector"]["features"]["max_features"] =
+      defaults["detector"]["features"]["max_features"];
+  EXPECT_EQ(dense_json, defaults);
+  PipelineOptions untouched;
+  try {
+    ApplyPreset("tiny", &untouched);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "expected a preset name (dense | sparse), got 'tiny'");
+  }
+}
+
+}  // namespace
+}  // namespace sparseloop

@@ -265,6 +265,14 @@ TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
   p.config_json = "{";
   EXPECT_NE(message(p).find("~config is not a JSON object"), std::string::npos) << message(p);
   p = NodeParams{};
+  p.preset = "tiny";
+  EXPECT_NE(message(p).find("~preset tiny: expected a preset name (dense | sparse)"),
+            std::string::npos)
+      << message(p);
+  p.preset = "sparse";
+  p.config_json = R"({"detector": {"check_every": 2}})";  // on top of the preset
+  EXPECT_EQ(message(p), "no error");
+  p = NodeParams{};
   p.max_pose_dt = 0;
   EXPECT_NE(message(p).find("~max_pose_dt"), std::string::npos);
   p = NodeParams{};

@@ -61,6 +61,19 @@ void ApplyConfigOverride(const std::string& key, const std::string& value,
 // Reads a JSON file and applies it (FileError with line on a JSON syntax error).
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options);
 
+// Shipped presets: named configurations a user picks on purpose (`--preset NAME`, Python
+// `preset=`, the ROS node's `~preset`), applied before any --config / --set. Their source is
+// presets/NAME.json, embedded at build time and installed to share/sparseloop/presets; a root
+// "doc" object says what each is for (docs/FORMATS.md, "Presets").
+//   sparse: the paper's design at K = 20 (about 800 B per keyframe).
+//   dense:  K = 300 (about 11 KB per keyframe).
+std::vector<std::string> PresetNames();
+// The preset's JSON, as in its file. Throws std::invalid_argument "expected a preset name (dense |
+// sparse), got 'x'" for an unknown name.
+nlohmann::json PresetConfig(const std::string& name);
+// ApplyConfig(PresetConfig(name)) on top of `options`.
+void ApplyPreset(const std::string& name, PipelineOptions* options);
+
 // The full effective configuration (every key), for summary.json.
 nlohmann::json ConfigToJson(const PipelineOptions& options);
 
