@@ -17,8 +17,6 @@ const char* ToString(VerificationMethod method) {
   switch (method) {
     case VerificationMethod::kEssential:
       return "essential";
-    case VerificationMethod::kFundamental:
-      return "fundamental";
     case VerificationMethod::kPnP:
       return "pnp";
     case VerificationMethod::kSim3:
@@ -96,20 +94,6 @@ VerificationResult VerifyPair(const KeyframeRecord& query, const KeyframeRecord&
   }
 
   const TwoViewData data = MakeTwoViewData(query, match, matches, threshold);
-  if (options.use_fundamental) {
-    result.method = VerificationMethod::kFundamental;
-    if (matches.size() < 8) return result;
-    cv::Mat mask;
-    cv::Mat f = cv::findFundamentalMat(data.pts_match, data.pts_query, cv::FM_RANSAC, threshold,
-                                       options.confidence, options.max_iterations, mask);
-    if (f.empty() || mask.empty()) return result;
-    for (int i = 0; i < mask.rows; ++i)
-      if (mask.at<uint8_t>(i)) result.inlier_matches.push_back(i);
-    result.inliers = static_cast<int>(result.inlier_matches.size());
-    result.success = accept(result.inliers);
-    return result;
-  }
-
   VerifyEssential(data, matches.size(), options, &result);
   result.success = accept(result.inliers);
   return result;

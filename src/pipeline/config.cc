@@ -227,8 +227,6 @@ void AddMatchingKeys(KeyList& k) {
         "a pair with fewer geometric inliers fails");
   k.Add(v + "min_inlier_ratio", SL_FIELD(detector.verify.min_inlier_ratio), "ratio",
         "inliers / matches below this fail [0, 1]");
-  k.Add(v + "use_fundamental", SL_FIELD(detector.verify.use_fundamental), "",
-        "fundamental matrix instead of essential (intrinsics unknown)");
   k.Add(v + "use_depths", SL_FIELD(detector.verify.use_depths), "",
         "PnP / Sim(3) when depths exist");
   k.Add(v + "scale_from_query_depths_min", SL_FIELD(detector.verify.scale_from_query_depths_min),

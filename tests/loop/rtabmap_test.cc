@@ -157,27 +157,5 @@ TEST(RtabmapCorridor, SmallKWithoutPoses) {
   EXPECT_LT(first.precision, 1.0);
 }
 
-// The alternative for unknown intrinsics: the fundamental matrix (7 DoF, no pose). Measured next
-// to the essential matrix with guessed intrinsics above; numbers go to docs/DETECTOR.md.
-TEST(RtabmapCorridor, FundamentalMatrixAlternative) {
-  SL_REQUIRE_DATA("rtabmap_corridor_loop");
-  const auto images = test::LoadRtabmap();
-  std::set<std::pair<int, int>> gt;
-  for (const auto& p : test::LoadRtabmapGt()) gt.insert(p);
-  int best_tp = 0;
-  for (int k : {50, 300}) {
-    LoopDetector::Options options;
-    options.features.max_features = k;
-    options.verify.use_fundamental = true;
-    const PrNumbers pr = RunRtabmap(images, gt, options);
-    std::printf(
-        "rtabmap fundamental K=%3d: detections %2d TP %2d precision %.3f recall %.3f "
-        "recall@100%%P %.3f\n",
-        k, pr.detections, pr.true_positives, pr.precision, pr.recall, pr.recall_at_full_precision);
-    best_tp = std::max(best_tp, pr.true_positives);
-  }
-  EXPECT_GT(best_tp, 0);
-}
-
 }  // namespace
 }  // namespace sparseloop

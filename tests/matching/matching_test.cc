@@ -575,16 +575,6 @@ TEST(Verification, Sim3PairAtTheInlierFloorIsFoundAsOftenWithFewerIterations) {
   EXPECT_GE(capped, full - 2);
 }
 
-TEST(Verification, FundamentalCountsInliersWithoutPose) {
-  const Scene s = MakeScene(23, 80, 20, false, false);
-  VerifyOptions o;
-  o.use_fundamental = true;
-  const auto v = VerifyPair(s.query, s.match, s.matches, o);
-  ASSERT_TRUE(v.success);
-  EXPECT_EQ(v.pose_kind, RelativePoseKind::kNone);
-  EXPECT_GE(v.inliers, 58);
-}
-
 TEST(Verification, PnPWithMatchDepths) {
   const Scene s = MakeScene(24, 60, 10, false, true);
   const auto v = VerifyPair(s.query, s.match, s.matches, VerifyOptions{});

@@ -86,7 +86,6 @@ TEST(RetrievalConfig, BaselineConfigFiles) {
     }
     EXPECT_EQ(d.verify.min_inliers, defaults.verify.min_inliers);
     EXPECT_EQ(d.verify.threshold_px, defaults.verify.threshold_px);
-    EXPECT_EQ(d.verify.use_fundamental, defaults.verify.use_fundamental);
     EXPECT_EQ(d.retrieval, std::string(name) == "full_ann.json" ? CandidateRetrieval::kAnn
                                                                 : CandidateRetrieval::kBruteForce);
   }

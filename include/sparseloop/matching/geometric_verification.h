@@ -1,7 +1,7 @@
 #pragma once
 // Geometric verification of a descriptor-matched keyframe pair: essential matrix (5-point RANSAC
-// on normalised coordinates), fundamental matrix (intrinsics unknown), PnP (depths on one side) or
-// 3D-3D Sim(3) (depths on both sides). All seeded, deterministic.
+// on normalised coordinates), PnP (depths on one side) or 3D-3D Sim(3) (depths on both sides).
+// All seeded, deterministic.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -13,12 +13,12 @@
 
 namespace sparseloop {
 
-enum class VerificationMethod { kEssential, kFundamental, kPnP, kSim3 };
+enum class VerificationMethod { kEssential, kPnP, kSim3 };
 const char* ToString(VerificationMethod method);
 
 // What the relative pose of a verified pair means.
 enum class RelativePoseKind {
-  kNone,                // no pose (fundamental matrix)
+  kNone,                // no pose (the pair did not verify)
   kSE3UnitTranslation,  // rotation + translation direction (|t| = 1), monocular two-view
   kSE3Metric,           // rotation + translation in the depth units of one side (PnP)
   kSim3,                // rotation, translation and scale (3D-3D with depths on both sides)
@@ -34,7 +34,6 @@ struct VerifyOptions {
   int local_optimization_rounds = 5;
   int min_inliers = 12;           // a pair with fewer geometric inliers fails, count
   double min_inlier_ratio = 0.0;  // inliers / matches below this fail, ratio in [0, 1]
-  bool use_fundamental = false;   // intrinsics unknown: fundamental matrix instead of essential
   bool use_depths = true;         // use PnP / Sim(3) when depths exist
   // Depths on both sides and the Sim(3) RANSAC falls short: the PnP fallback's relative scale is
   // measured from the query's depths (AddScaleFromQueryDepths) when at least this many of its
