@@ -120,14 +120,12 @@ void LoopDetector::Options::Check() const {
                "planar_alternative_tolerance must be in (0, 1], got {}",
                planar_alternative_tolerance);
   SL_CHECK_MSG(weak_min_inliers >= 5, "weak_min_inliers must be >= 5, got {}", weak_min_inliers);
-  SL_CHECK_MSG(fallback_candidates >= 0 && fallback_rank_features >= 0 &&
-                   fallback_coarse_features >= 0 && fallback_coarse_probe >= 0 &&
-                   fallback_fine_features >= 0,
-               "fallback_candidates, fallback_rank_features, fallback_coarse_features, "
-               "fallback_coarse_probe and fallback_fine_features must be >= 0, got {}, {}, {}, {} "
-               "and {}",
-               fallback_candidates, fallback_rank_features, fallback_coarse_features,
-               fallback_coarse_probe, fallback_fine_features);
+  SL_CHECK_MSG(fallback_candidates >= 0 && fallback_coarse_features >= 0 &&
+                   fallback_coarse_probe >= 0 && fallback_fine_features >= 0,
+               "fallback_candidates, fallback_coarse_features, fallback_coarse_probe and "
+               "fallback_fine_features must be >= 0, got {}, {}, {} and {}",
+               fallback_candidates, fallback_coarse_features, fallback_coarse_probe,
+               fallback_fine_features);
   SL_CHECK_MSG(pose_jump_factor >= 0 && pose_jump_max_deg >= 0,
                "pose_jump_factor and pose_jump_max_deg must be >= 0 (0: off), got {} and {}",
                pose_jump_factor, pose_jump_max_deg);
@@ -376,9 +374,6 @@ std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& que
   if (options_.fallback_fine_features > 0)
     own = own.first(std::min(own.size(), static_cast<size_t>(options_.fallback_fine_features)));
   std::vector<Descriptor> probe(own.begin(), own.end());
-  const size_t extra =
-      std::min(query.descriptors.size(), static_cast<size_t>(options_.fallback_rank_features));
-  probe.insert(probe.end(), query.descriptors.begin(), query.descriptors.begin() + extra);
   ProbeRankOptions ro;
   ro.keep = static_cast<size_t>(options_.fallback_candidates);
   ro.coarse_features = static_cast<size_t>(options_.fallback_coarse_features);

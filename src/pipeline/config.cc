@@ -286,8 +286,6 @@ void AddDetectorPolicyKeys(KeyList& k) {
         "verify the best");
   k.Add(d + "fallback_candidates", SL_FIELD(detector.fallback_candidates), "keyframes",
         "appearance fallback: keyframes matched in full after the cheap pre-ranking (0: all)");
-  k.Add(d + "fallback_rank_features", SL_FIELD(detector.fallback_rank_features), "features",
-        "appearance fallback pre-ranking: query features besides its K (>= 0)");
   k.Add(d + "fallback_coarse_features", SL_FIELD(detector.fallback_coarse_features), "features",
         "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
         "on this many stored descriptors each (0: off)");

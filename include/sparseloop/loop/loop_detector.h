@@ -362,14 +362,13 @@ class LoopDetector {
     // The fallback's cheap pre-ranking (it keeps the small-K verification tail short and the
     // fallback cheap as the map grows): every eligible stored keyframe is scored by how many of
     // its K descriptors have a neighbour within match.max_distance among the query's own stored K
-    // and its first fallback_rank_features extracted features (K x that many Hamming distances,
-    // no ratio test), and only the fallback_candidates best are matched with the query's whole
-    // extraction and verified. fallback_candidates = 0: every eligible keyframe is matched in
-    // full (its cost grows with the map). 5: the same loops as with 20 on street00 / 05 x4,
-    // street07, the aerial flights and the K = 15 preset, and at K = 300 each candidate matched
-    // in full is 300 x 300 distances (10,000 stored keyframes: 9.4 ms with 20, bench_detector).
+    // (K x K Hamming distances, no ratio test), and only the fallback_candidates best are matched
+    // with the query's whole extraction and verified. fallback_candidates = 0: every eligible
+    // keyframe is matched in full (its cost grows with the map). 5: the same loops as with 20 on
+    // street00 / 05 x4, street07, the aerial flights and the K = 15 preset, and at K = 300 each
+    // candidate matched in full is 300 x 300 distances (10,000 stored keyframes: 9.4 ms with 20,
+    // bench_detector).
     int fallback_candidates = 5;
-    int fallback_rank_features = 0;  // features of the query besides its K, >= 0
     // With more than 10 x fallback_candidates eligible keyframes, a coarse stage first: each is
     // scored by its first fallback_coarse_features stored descriptors (its best ranked), and the
     // 10 x fallback_candidates best go on to the full score (a large map: the target of <= 2 ms at
