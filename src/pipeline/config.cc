@@ -423,8 +423,7 @@ void AddOptimizerKeys(KeyList& k) {
         "whitened residual where the robust loss bends");
   k.AddEnum(
       p + "rejection", SL_FIELD(optimizer.rejection),
-      {OutlierRejection::kNone, OutlierRejection::kPcm, OutlierRejection::kSwitchable,
-       OutlierRejection::kPcmAndSwitchable},
+      {OutlierRejection::kNone, OutlierRejection::kPcm},
       [](OutlierRejection r) { return ToString(r); }, "outlier loop rejection");
   k.Add(p + "pcm_confidence", SL_FIELD(optimizer.pcm.confidence), "probability",
         "PCM: chi-square quantile of the consistency threshold");
@@ -444,10 +443,6 @@ void AddOptimizerKeys(KeyList& k) {
         "probability", "PCM: chi-square quantile of the single-loop odometry test");
   k.Add(p + "pcm_max_exact_clique", SL_FIELD(optimizer.pcm.max_exact_clique), "loops",
         "PCM: above this many loops a greedy clique is used");
-  k.Add(p + "switch_prior_sigma", SL_FIELD(optimizer.switch_prior_sigma), "",
-        "switchable: std-dev of the switch prior");
-  k.Add(p + "switch_reject_below", SL_FIELD(optimizer.switch_reject_below), "",
-        "switchable: a loop whose switch ends below this is rejected");
   k.Add(p + "num_threads", SL_FIELD(optimizer.num_threads), "threads", "Ceres threads ([1, 256])");
   k.Add(p + "reduce_chains", SL_FIELD(optimizer.reduce_chains), "",
         "Sim(3): solve without odometry-chain vertices, recover them after");

@@ -35,10 +35,6 @@ const char* ToString(OutlierRejection r) {
       return "none";
     case OutlierRejection::kPcm:
       return "pcm";
-    case OutlierRejection::kSwitchable:
-      return "switchable";
-    case OutlierRejection::kPcmAndSwitchable:
-      return "pcm+switchable";
   }
   return "?";
 }
@@ -218,9 +214,6 @@ void PoseGraphOptions::Check() const {
   SL_CHECK_MSG(loss_scale > 0, "loss_scale must be > 0, got {}", loss_scale);
   SL_CHECK_MSG(initial_trust_region_radius > 0, "initial_trust_region_radius must be > 0, got {}",
                initial_trust_region_radius);
-  SL_CHECK_MSG(switch_prior_sigma > 0, "switch_prior_sigma must be > 0");
-  SL_CHECK_MSG(switch_reject_below >= 0 && switch_reject_below <= 1,
-               "switch_reject_below must be in [0,1]");
   SL_CHECK_MSG(num_threads >= 1, "num_threads must be >= 1, got {}", num_threads);
   SL_CHECK_MSG(max_chain_length >= 1, "max_chain_length must be >= 1, got {}", max_chain_length);
   SL_CHECK_MSG(loop_weight_rounds >= 0, "loop_weight_rounds must be >= 0, got {}",
@@ -338,40 +331,6 @@ ceres::LossFunction* MakeLoss(RobustLoss loss, double scale) {
   return nullptr;
 }
 
-bool UsesSwitches(const PoseGraphOptions& options) {
-  return options.rejection == OutlierRejection::kSwitchable ||
-         options.rejection == OutlierRejection::kPcmAndSwitchable;
-}
-
-// Switchable loop: r = s * S * log(...), with a separate prior on the switch s in [0, 1].
-class SwitchableEdgeError {
- public:
-  SwitchableEdgeError(const Sim3d& a_from_b, const Matrix7d& sqrt_information)
-      : edge_(a_from_b, sqrt_information) {}
-  template <typename T>
-  bool operator()(const T* a, const T* b, const T* s, T* residual) const {
-    if (!edge_(a, b, residual)) return false;
-    for (int i = 0; i < 7; ++i) residual[i] *= s[0];
-    return true;
-  }
-
- private:
-  EdgeError edge_;
-};
-
-class SwitchPrior : public ceres::SizedCostFunction<1, 1> {
- public:
-  explicit SwitchPrior(double sigma) : inv_sigma_(1.0 / sigma) {}
-  bool Evaluate(double const* const* params, double* residual, double** jacobians) const override {
-    residual[0] = (1.0 - params[0][0]) * inv_sigma_;
-    if (jacobians != nullptr && jacobians[0] != nullptr) jacobians[0][0] = -inv_sigma_;
-    return true;
-  }
-
- private:
-  double inv_sigma_;
-};
-
 class InterruptCallback : public ceres::IterationCallback {
  public:
   explicit InterruptCallback(const std::atomic<bool>* flag) : flag_(flag) {}
@@ -401,8 +360,8 @@ class LogCallback : public ceres::IterationCallback {
 
 }  // namespace
 
-double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
-                           const std::vector<double>& switches) const {
+double PoseGraph::FullCost(const PoseGraphOptions& options,
+                           const std::vector<bool>& use_loop) const {
   const std::unique_ptr<ceres::LossFunction> edge_loss(
       MakeLoss(options.edge_loss, options.loss_scale));
   const std::unique_ptr<ceres::LossFunction> loop_loss(
@@ -429,19 +388,12 @@ double PoseGraph::FullCost(const PoseGraphOptions& options, const std::vector<bo
     cost += term(edge_loss.get(),
                  squared_error(e.from_from_to, e.information, edge_ends_[k][0], edge_ends_[k][1]));
   }
-  const bool switchable = UsesSwitches(options);
   for (size_t k = 0; k < loops_.size(); ++k) {
     if (!use_loop[k]) continue;
     const LoopConstraint& loop = loops_[k];
-    const double s = switchable ? switches[k] : 1.0;
-    cost += term(loop_loss.get(),
-                 s * s *
-                     squared_error(loop.match_from_query, LoopEffectiveInformation(loop),
-                                   Index(loop.match_id), Index(loop.query_id)));
-    if (switchable) {
-      const double prior = (1.0 - s) / options.switch_prior_sigma;
-      cost += 0.5 * prior * prior;
-    }
+    cost +=
+        term(loop_loss.get(), squared_error(loop.match_from_query, LoopEffectiveInformation(loop),
+                                            Index(loop.match_id), Index(loop.query_id)));
   }
   return cost;
 }
@@ -478,8 +430,7 @@ PoseGraphSummary PoseGraph::Optimize(const PoseGraphOptions& options,
 
   // 1. Outlier rejection before the solve (PCM).
   std::vector<bool> use_loop(loops_.size(), true);
-  if (options.rejection == OutlierRejection::kPcm ||
-      options.rejection == OutlierRejection::kPcmAndSwitchable) {
+  if (options.rejection == OutlierRejection::kPcm) {
     Timer timer;
     std::fill(use_loop.begin(), use_loop.end(), false);
     for (size_t i : PcmConsistentLoopsIncremental(options.pcm)) use_loop[i] = true;
@@ -541,13 +492,11 @@ PoseGraphStatus StatusOf(const ceres::Solver::Summary& summary, bool interrupted
   return PoseGraphStatus::kFailed;
 }
 
-// The used loops' residuals: switchable (a switch variable in [0, 1] per loop with its prior) or
-// plain, each with its information x loop_scale.
+// The used loops' residuals, each with its information x loop_scale.
 template <typename ParamOf, typename MakeEdge>
 void AddLoopResiduals(const std::vector<LoopConstraint>& loops, const std::vector<bool>& use_loop,
-                      double loop_scale, const PoseGraphOptions& options, bool switchable,
-                      ParamOf param_of, MakeEdge make_edge, ceres::Problem* problem,
-                      std::vector<double>* switches) {
+                      double loop_scale, const PoseGraphOptions& options, ParamOf param_of,
+                      MakeEdge make_edge, ceres::Problem* problem) {
   for (size_t k = 0; k < loops.size(); ++k) {
     if (!use_loop[k]) continue;
     const LoopConstraint& loop = loops[k];
@@ -555,19 +504,8 @@ void AddLoopResiduals(const std::vector<LoopConstraint>& loops, const std::vecto
         std::sqrt(loop_scale) * SqrtInformation(LoopEffectiveInformation(loop));
     double* match = param_of(loop.match_id);
     double* query = param_of(loop.query_id);
-    if (switchable) {
-      double* s = &(*switches)[k];
-      auto* cost = new ceres::AutoDiffCostFunction<SwitchableEdgeError, 7, 8, 8, 1>(
-          new SwitchableEdgeError(loop.match_from_query, sqrt_info));
-      problem->AddResidualBlock(cost, MakeLoss(options.loop_loss, options.loss_scale), match, query,
-                                s);
-      problem->AddResidualBlock(new SwitchPrior(options.switch_prior_sigma), nullptr, s);
-      problem->SetParameterLowerBound(s, 0, 0.0);
-      problem->SetParameterUpperBound(s, 0, 1.0);
-    } else {
-      problem->AddResidualBlock(make_edge(loop.match_from_query, sqrt_info),
-                                MakeLoss(options.loop_loss, options.loss_scale), match, query);
-    }
+    problem->AddResidualBlock(make_edge(loop.match_from_query, sqrt_info),
+                              MakeLoss(options.loop_loss, options.loss_scale), match, query);
   }
 }
 
@@ -585,16 +523,14 @@ std::vector<bool> PoseGraph::VerticesToKeep(const std::vector<bool>& use_loop) c
 }
 
 void PoseGraph::AdoptSolution(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
-                              const std::vector<double>& switches, PoseGraphSummary* summary) {
-  const bool switchable = UsesSwitches(options);
+                              PoseGraphSummary* summary) {
   for (size_t i = 0; i < params_.size(); ++i) {
     Vector8d& p = params_[i];
     p.head<4>().normalize();
     poses_[i] = Sim3d::FromVector(p);
   }
   for (size_t k = 0; k < loops_.size(); ++k) {
-    const bool rejected = !use_loop[k] || (switchable && switches[k] < options.switch_reject_below);
-    if (rejected) {
+    if (!use_loop[k]) {
       summary->rejected_loops.push_back(k);
       summary->rejected_loop_ids.push_back({loops_[k].query_id, loops_[k].match_id});
     } else {
@@ -607,7 +543,6 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
                           double loop_scale, const std::atomic<bool>* interrupt,
                           PoseGraphSummary* out) {
   PoseGraphSummary& summary = *out;
-  const bool switchable = UsesSwitches(options);
   // The Ceres problem over the stored parameter blocks (only the kept ones when chains are
   //    reduced; see chain_reduction.h).
   Timer reduction_timer;
@@ -650,10 +585,9 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
   } else {
     for (const PoseGraphEdge& e : edges_) add_edge(e);
   }
-  std::vector<double> switches(loops_.size(), 1.0);
   AddLoopResiduals(
-      loops_, use_loop, loop_scale, options, switchable,
-      [this](int64_t id) { return params_[Index(id)].data(); }, make_edge, &problem, &switches);
+      loops_, use_loop, loop_scale, options,
+      [this](int64_t id) { return params_[Index(id)].data(); }, make_edge, &problem);
   // Gauge: see SetFixedVertex.
   problem.SetParameterBlockConstant(params_[Index(fixed_vertex())].data());
 
@@ -666,7 +600,7 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
   const std::vector<Vector8d> backup = params_;
   if (reduce) {
     reduction_timer = Timer();
-    summary.initial_cost = FullCost(options, use_loop, switches);
+    summary.initial_cost = FullCost(options, use_loop);
     reduction_seconds += reduction_timer.ElapsedMs() / 1000.0;
   }
   ceres::Solver::Summary ceres_summary;
@@ -690,11 +624,11 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
                                   jet::Sim3<double>::FromArray(params_[chain.to].data()), &params_);
       }
     }
-    summary.final_cost = FullCost(options, use_loop, switches);
+    summary.final_cost = FullCost(options, use_loop);
     reduction_seconds += reduction_timer.ElapsedMs() / 1000.0;
   }
   summary.solve_seconds = ceres_summary.total_time_in_seconds + reduction_seconds;
-  AdoptSolution(options, use_loop, switches, &summary);
+  AdoptSolution(options, use_loop, &summary);
 }
 
 Matrix7d LoopEffectiveInformation(const LoopConstraint& loop) {

@@ -30,7 +30,7 @@ TEST(Config, AppliesKnownKeys) {
                    "search": {"strategy": "radius", "radius": 7.5, "plane_normal": [0, 1, 0]},
                    "check_every": 5, "seed": 7, "planar_alternatives": false,
                    "planar_alternative_tolerance": 0.3},
-      "optimizer": {"rejection": "switchable", "loop_loss": "huber", "reduce_chains": false,
+      "optimizer": {"rejection": "none", "loop_loss": "huber", "reduce_chains": false,
                     "max_chain_length": 3},
       "vertex_type": "se3"})"),
               "cfg.json", &o);
@@ -44,7 +44,7 @@ TEST(Config, AppliesKnownKeys) {
   EXPECT_FALSE(o.detector.planar_alternatives);
   EXPECT_DOUBLE_EQ(o.detector.planar_alternative_tolerance, 0.3);
   EXPECT_EQ(o.detector.verify.seed, 7u);
-  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kSwitchable);
+  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kNone);
   EXPECT_EQ(o.optimizer.loop_loss, RobustLoss::kHuber);
   EXPECT_FALSE(o.optimizer.reduce_chains);
   EXPECT_EQ(o.optimizer.max_chain_length, 3);
@@ -297,8 +297,8 @@ TEST(Config, OverrideErrorsNameTheKeyAndWhatFits) {
   EXPECT_NE(name.find("optimizer.rejection: expected"), std::string::npos) << name;
   EXPECT_NE(name.find("pcm"), std::string::npos) << name;
   // Quoted and bare strings are the same value.
-  ApplyConfigOverride("optimizer.rejection", "\"switchable\"", &o);
-  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kSwitchable);
+  ApplyConfigOverride("optimizer.rejection", "\"none\"", &o);
+  EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kNone);
   ApplyConfigOverride("optimizer.rejection", "pcm", &o);
   EXPECT_EQ(o.optimizer.rejection, OutlierRejection::kPcm);
 }

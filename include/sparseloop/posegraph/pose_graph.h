@@ -4,8 +4,8 @@
 // Vertices are keyframe poses world_from_keyframe stored as Sim3d; the VertexType of the graph
 // chooses the degrees of freedom (Sim(3) for monocular input, SE(3) for metric input, 4-DoF for
 // gravity-aligned VIO, SE(2) for planar benchmark graphs). Edges measure a_from_b.
-// Loops are kept apart from the other edges so that outlier rejection (PCM, switchable
-// constraints) can drop them; the summary reports which loops were rejected.
+// Loops are kept apart from the other edges so that outlier rejection (PCM) can drop them; the
+// summary reports which loops were rejected.
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -78,12 +78,10 @@ struct OdometryWeighting {
 enum class RobustLoss { kTrivial, kHuber, kCauchy };
 const char* ToString(RobustLoss loss);  // "trivial", "huber", "cauchy"
 enum class OutlierRejection {
-  kNone,        // plain least squares (with the chosen robust loss)
-  kPcm,         // pairwise consistency maximisation, then the solve with accepted loops
-  kSwitchable,  // switchable constraints (Suenderhauf & Protzel 2012)
-  kPcmAndSwitchable,
+  kNone,  // plain least squares (with the chosen robust loss)
+  kPcm,   // pairwise consistency maximisation, then the solve with accepted loops
 };
-const char* ToString(OutlierRejection rejection);  // "none", "pcm", "switchable", "pcm+switchable"
+const char* ToString(OutlierRejection rejection);  // "none", "pcm"
 
 // Pairwise consistency maximisation (Mangelson et al. 2018, as in Kimera-RPGO). Two loops a, b
 // are consistent when the cycle  Z_a * odom(q_a -> q_b) * Z_b^-1 * odom(m_b -> m_a)  is close to
@@ -157,9 +155,7 @@ struct PoseGraphOptions {
   double loss_scale = 1.0;  // whitened residual units (sigmas) where the robust loss bends
   OutlierRejection rejection = OutlierRejection::kPcm;
   PcmOptions pcm;
-  double switch_prior_sigma = 1.0;   // unitless: std-dev of the switch prior (1 - s)
-  double switch_reject_below = 0.5;  // switch value below which a loop is reported rejected
-  int num_threads = 1;               // Ceres threads
+  int num_threads = 1;  // Ceres threads
   // Sim(3) graphs: solve without the vertices that only continue an odometry chain (two edges,
   // no loop, not the gauge), each chain between two kept vertices replaced by its composed edge
   // with the propagated covariance; the chain vertices are then recovered from the solved ends
@@ -297,15 +293,14 @@ class PoseGraph {
   // Steps of SolveOnce. The vertices chain reduction must keep (the fixed one, the ends of the
   // used loops).
   std::vector<bool> VerticesToKeep(const std::vector<bool>& use_loop) const;
-  // After a solve: poses from the normalised parameters; each loop rejected (not used, or its
-  // switch below switch_reject_below) or checked against its covariance (CheckLoop).
+  // After a solve: poses from the normalised parameters; each loop rejected (not used) or checked
+  // against its covariance (CheckLoop).
   void AdoptSolution(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
-                     const std::vector<double>& switches, PoseGraphSummary* summary);
+                     PoseGraphSummary* summary);
   size_t Index(int64_t id) const;
   // 0.5 * sum of (robustified) squared residuals of every edge and every used loop at the current
   // estimates (Sim(3) residuals; used when the solved problem is the reduced one).
-  double FullCost(const PoseGraphOptions& options, const std::vector<bool>& use_loop,
-                  const std::vector<double>& switches) const;
+  double FullCost(const PoseGraphOptions& options, const std::vector<bool>& use_loop) const;
   // Sets (*adj) to the pairwise consistency of all loops, computing only the pairs with a loop
   // index >= from (the rest of *adj must hold the earlier result).
   // Also sets odometry->chi2[k] / dof[k] for k >= from: loop k's single-loop odometry statistic
