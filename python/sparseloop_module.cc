@@ -17,6 +17,7 @@
 #include <utility>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -281,12 +282,17 @@ Trajectory TrajectoryFromNumpy(
 
 // PipelineOptions from a config dict (the `--config` keys, strict), then the LoopClosing options
 // that compute what `run` computes (the mapping of tests/runtime/loop_closing_test.cc).
-LoopClosing::Options ClosingOptions(const py::object& config, const std::string& preset,
+LoopClosing::Options ClosingOptions(const py::object& config, const py::object& preset,
                                     bool solve_while_running, bool optimize) {
   PipelineOptions p;
-  if (!preset.empty()) {
+  if (!preset.is_none()) {
+    if (!py::isinstance<py::str>(preset)) {
+      throw std::invalid_argument(fmt::format("preset: expected a preset name ({}) or None, got {}",
+                                              fmt::join(PresetNames(), " | "),
+                                              py::repr(preset).cast<std::string>()));
+    }
     try {
-      ApplyPreset(preset, &p);
+      ApplyPreset(preset.cast<std::string>(), &p);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(std::string("preset: ") + e.what());
     }
@@ -317,7 +323,7 @@ py::dict CorrectionsToDict(const CorrectedKeyframes& c) {
 // LoopClosing plus the loops it sent to the graph (for loops() / accepted_loops()).
 class PyLoopClosing {
  public:
-  PyLoopClosing(const py::object& config, const std::string& preset, bool solve_while_running,
+  PyLoopClosing(const py::object& config, const py::object& preset, bool solve_while_running,
                 bool optimize, py::object on_correction) {
     LoopClosing::CorrectionCallback cb;
     if (!on_correction.is_none()) {
@@ -482,8 +488,8 @@ config: None, a dict of `--config` keys ({"detector": {"features": {"max_feature
 the path of a JSON config file. preset: a shipped preset applied before config ("sparse",
 "dense"; sparseloop.presets()). solve_while_running=False solves once, in finish(), as
 `sparseloop run` does. on_correction(dict) runs on the background thread after each solve.)doc")
-      .def(py::init<const py::object&, const std::string&, bool, bool, py::object>(),
-           py::arg("config") = py::none(), py::arg("preset") = "",
+      .def(py::init<const py::object&, const py::object&, bool, bool, py::object>(),
+           py::arg("config") = py::none(), py::arg("preset") = py::none(),
            py::arg("solve_while_running") = true, py::arg("optimize") = true,
            py::arg("on_correction") = py::none())
       .def("add_keyframe", &PyLoopClosing::AddKeyframe, py::arg("id"), py::arg("timestamp"),

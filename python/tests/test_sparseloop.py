@@ -234,4 +234,7 @@ def test_presets_configure_the_closer_and_an_unknown_one_is_named():
     closing.finish()
     with pytest.raises(ValueError, match=r"preset: expected a preset name \(dense \| sparse\), got 'tiny'"):
         sparseloop.LoopClosing(preset="tiny")
+    with pytest.raises(ValueError, match=r"preset: expected a preset name \(dense \| sparse\) or None, got 3"):
+        sparseloop.LoopClosing(preset=3)
+    sparseloop.LoopClosing(preset=None)  # the defaults
 

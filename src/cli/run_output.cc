@@ -178,11 +178,11 @@ void ApplySetFlags(const std::vector<std::string>& set, PipelineOptions* options
 
 PipelineOptions PipelineOptionsFromFlags(const DetectorFlags& flags) {
   PipelineOptions options;
-  if (!flags.preset.empty()) {
+  if (flags.preset) {  // given, even empty: an empty value is an error, not the defaults
     try {
-      ApplyPreset(flags.preset, &options);
+      ApplyPreset(*flags.preset, &options);
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(fmt::format("--preset {}: {}", flags.preset, e.what()));
+      throw std::invalid_argument(fmt::format("--preset {}: {}", *flags.preset, e.what()));
     }
   }
   if (!flags.config.empty()) LoadConfigFile(flags.config, &options);

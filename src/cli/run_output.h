@@ -35,10 +35,10 @@ struct DetectorFlags {
   std::string poses;       // raw vSLAM poses
   std::string intrinsics;  // fx,fy,cx,cy
   DetectorOverrides detector;
-  std::string preset;  // a shipped preset (PresetNames), applied before --config
-  std::string config;  // JSON configuration file
-  std::string out;     // output directory
-  bool quiet = false;  // no progress line
+  std::optional<std::string> preset;  // a shipped preset (PresetNames), applied before --config
+  std::string config;                 // JSON configuration file
+  std::string out;                    // output directory
+  bool quiet = false;                 // no progress line
 };
 
 void AddDetectorFlags(CLI::App& app, DetectorFlags* flags);

@@ -87,6 +87,23 @@ int IntParam(ros::NodeHandle& pnh, const std::string& name, int fallback, int lo
   return static_cast<int>(d);
 }
 
+// A string parameter, `fallback` when unset. Another type is an error naming the parameter:
+// roscpp's param<std::string> took the fallback silently, so `_preset:=1` or
+// `_trajectory_file:=123` (read as numbers) ran with the defaults and no trajectory file.
+std::string StringParam(ros::NodeHandle& pnh, const std::string& name,
+                        const std::string& fallback) {
+  XmlRpc::XmlRpcValue v;
+  if (!pnh.getParam(name, v)) return fallback;
+  if (v.getType() != XmlRpc::XmlRpcValue::TypeString) {
+    std::ostringstream got;
+    got << v;
+    throw std::invalid_argument(pnh.resolveName(name) + " must be a string, got " + got.str() +
+                                " (a value that reads as a number or boolean needs quotes: _" +
+                                name + ":=\"'...'\")");
+  }
+  return static_cast<std::string>(v);
+}
+
 nlohmann::json ToJson(XmlRpc::XmlRpcValue& v, const std::string& name) {
   switch (v.getType()) {
     case XmlRpc::XmlRpcValue::TypeBoolean:
@@ -125,19 +142,19 @@ class Node {
       }
       p.config_json = ToJson(config, pnh.resolveName("config")).dump();
     }
-    pnh.param<std::string>("preset", p.preset, "");
-    pnh.param<std::string>("config_file", p.config_file, "");
+    p.preset = StringParam(pnh, "preset", "");
+    p.config_file = StringParam(pnh, "config_file", "");
     pnh.param("solve_while_running", p.solve_while_running, p.solve_while_running);
     pnh.param("max_pose_dt", p.max_pose_dt, p.max_pose_dt);
     p.image_queue = IntParam(pnh, "image_queue", p.image_queue, 1, 100000);
     p.pose_buffer = IntParam(pnh, "pose_buffer", p.pose_buffer, 1, 100000000);
     pnh.param("wait_for_points", p.wait_for_points, p.wait_for_points);
-    pnh.param<std::string>("trajectory_file", p.trajectory_file, "");
-    pnh.param<std::string>("loops_file", p.loops_file, "");
-    pnh.param<std::string>("pose_type", pose_type_, "pose");
-    pnh.param<std::string>("world_frame", world_frame_, "world");
-    pnh.param<std::string>("camera_frame", camera_frame_, "camera");
-    pnh.param<std::string>("image_transport", transport_, "raw");
+    p.trajectory_file = StringParam(pnh, "trajectory_file", "");
+    p.loops_file = StringParam(pnh, "loops_file", "");
+    pose_type_ = StringParam(pnh, "pose_type", "pose");
+    world_frame_ = StringParam(pnh, "world_frame", "world");
+    camera_frame_ = StringParam(pnh, "camera_frame", "camera");
+    transport_ = StringParam(pnh, "image_transport", "raw");
     pnh.param("diagnostics_period", diagnostics_period_, 1.0);
     if (!(diagnostics_period_ >= 0.0 && diagnostics_period_ <= 3600.0)) {
       std::ostringstream message;

@@ -73,6 +73,12 @@ TEST(CliPresets, AnUnknownPresetNamesTheFlagAndThePresets) {
   EXPECT_NE(r.err.find("--preset tiny"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("dense | sparse"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "out"));
+  // An empty value (`--preset "$UNSET"`) is an error too, not the defaults.
+  const CliResult empty =
+      RunCli({"run", "--dataset", "images:" + (dir / "none").string(), "--poses",
+              (dir / "none.txt").string(), "--preset", "", "--out", (dir / "out").string()});
+  EXPECT_EQ(empty.exit_code, 2) << empty.err;
+  EXPECT_NE(empty.err.find("--preset : expected a preset name"), std::string::npos) << empty.err;
 }
 
 }  // namespace

@@ -457,6 +457,9 @@ def test_node_survives_lost_tracking_and_out_of_order_stamps(ros, sequence):
      "/sparseloop/image_queue must be an integer in [1, 100000], got 3000000000"),
     ({"trajectory_file": "/nonexistent_folder/t.txt"},
      "~trajectory_file /nonexistent_folder/t.txt: expected an existing, writable output directory"),
+    ({"preset": "tiny"}, "~preset tiny: expected a preset name (dense | sparse), got 'tiny'"),
+    # A number where a string belongs was ignored (the default taken, no trajectory written).
+    ({"trajectory_file": 123}, "/sparseloop/trajectory_file must be a string, got 123"),
 ])
 def test_node_rejects_bad_parameters(ros, params, message):
     import rospy
