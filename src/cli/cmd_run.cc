@@ -18,7 +18,9 @@
 #include "cli/run_output.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/eval/json.h"
+#include "sparseloop/eval/loop_nees.h"
 #include "sparseloop/io/atomic_file.h"
+#include "sparseloop/io/raw_scale.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/pipeline.h"
 
@@ -33,7 +35,7 @@ const std::vector<std::string> kRunOutputFiles = {
 // The flags of `run` beyond the shared detector flags.
 struct RunFlags {
   DetectorFlags detector;
-  std::string gt_path, vertex, map_path, covariance_path;
+  std::string gt_path, vertex, map_path, covariance_path, raw_scale_path;
   double gt_loop_distance = -1.0;  // -1: not given (the default)
   std::optional<int64_t> gt_min_gap;
   std::optional<double> gt_min_path;
@@ -52,6 +54,11 @@ void AddRunFlags(CLI::App& app, RunFlags* f) {
   app.add_option("--map", f->map_path,
                  "Persistent map database (SQLite): earlier sessions in it are loaded for "
                  "multi-session loop closure, and this run is stored as a new session");
+  app.add_option("--raw-scale", f->raw_scale_path,
+                 "With --gt: the raw trajectory's scale per frame (raw units per GT unit; "
+                 "raw_scale.txt of `sparseloop render`, read by default from a kitti: render "
+                 "folder): each metric loop's pose is checked against the exact one, NEES in "
+                 "summary.json loop_nees");
   app.add_option("--gt-loop-distance", f->gt_loop_distance,
                  "A detected loop is 'correct' when the GT positions of its frames are closer "
                  "than this (GT units; default: 5% of the GT path length, at most 10)");
@@ -71,7 +78,8 @@ void CheckRunFlags(const RunFlags& f) {
   std::vector<NamedPath> inputs = {{"--config", f.detector.config},
                                    {"--poses", f.detector.poses},
                                    {"--gt", f.gt_path},
-                                   {"--odometry-covariance", f.covariance_path}};
+                                   {"--odometry-covariance", f.covariance_path},
+                                   {"--raw-scale", f.raw_scale_path}};
   for (const NamedPath& map : MapFiles("--map", f.map_path)) inputs.push_back(map);
   CheckOutputsAreNotInputs(FilesIn("--out", f.detector.out, kRunOutputFiles), inputs);
   CheckOutputDirFlag("--out", f.detector.out, kRunOutputFiles);
@@ -188,6 +196,68 @@ void AddOptimizerJson(const PipelineResult& result, nlohmann::json& summary) {
 // Loop precision / recall against GT revisits derived from the GT poses (the loop-truth
 // distance), over every query frame that has a GT partner: summary keys, pr_curve.csv and
 // gt_loops.txt.
+// The raw scale per frame for the loop NEES: --raw-scale, else raw_scale.txt of a kitti: render
+// folder; none without --gt or without either.
+std::optional<std::vector<double>> RawScaleFor(const RunFlags& flags, const Dataset& dataset,
+                                               bool have_gt) {
+  if (!have_gt) {
+    if (!flags.raw_scale_path.empty())
+      throw std::invalid_argument("--raw-scale: expected --gt as well (the exact loop poses)");
+    return std::nullopt;
+  }
+  std::filesystem::path path = flags.raw_scale_path;
+  if (path.empty()) {
+    const std::string& spec = flags.detector.dataset;
+    if (spec.rfind("kitti:", 0) != 0) return std::nullopt;
+    path = std::filesystem::path(spec.substr(6)) / "raw_scale.txt";
+    if (!std::filesystem::is_regular_file(path)) return std::nullopt;
+  }
+  std::vector<double> scale = ReadRawScale(path);
+  if (scale.size() < dataset.frames.size()) {
+    throw FileError(path.string(), 0,
+                    fmt::format("a raw scale for each of the {} frames", dataset.frames.size()),
+                    fmt::format("{} lines", scale.size()));
+  }
+  return scale;
+}
+
+// summary.json loop_nees: each accepted metric (PnP / Sim(3)) loop's pose against the exact one
+// (GT poses, raw scales), with the information the graph gave it (eval/loop_nees.h).
+nlohmann::json LoopNeesJson(const PipelineResult& result, const Trajectory& gt,
+                            const std::vector<double>& raw_scale) {
+  std::unordered_map<int64_t, size_t> gt_row;
+  for (size_t i = 0; i < gt.poses.size(); ++i) gt_row[gt.poses[i].frame] = i;
+  std::vector<LoopNees> checks;
+  nlohmann::json rows = nlohmann::json::array();
+  for (size_t k = 0; k < result.loops.size(); ++k) {
+    const LoopResult& l = result.loops[k];
+    const bool metric =
+        l.pose_kind == RelativePoseKind::kSE3Metric || l.pose_kind == RelativePoseKind::kSim3;
+    if (!result.loop_accepted[k] || !metric || !gt_row.count(l.query_id) ||
+        !gt_row.count(l.match_id) || static_cast<size_t>(l.query_id) >= raw_scale.size() ||
+        static_cast<size_t>(l.match_id) >= raw_scale.size())
+      continue;
+    const Sim3d exact = ExactLoopPose(
+        gt.poses[gt_row[l.match_id]].world_from_cam, gt.poses[gt_row[l.query_id]].world_from_cam,
+        raw_scale[static_cast<size_t>(l.match_id)], raw_scale[static_cast<size_t>(l.query_id)]);
+    LoopNees c = ComputeLoopNees(l.match_from_query, result.loop_information[k], exact);
+    c.query = l.query_id;
+    c.match = l.match_id;
+    checks.push_back(c);
+    rows.push_back({c.query, c.match, ToString(l.pose_kind), c.dof, c.nees});
+  }
+  const LoopNeesSummary s = SummarizeLoopNees(checks);
+  return {{"loops", s.loops},
+          {"mean_nees_per_dof", s.mean_ratio},
+          {"band_95", {s.band_low, s.band_high}},
+          {"median_nees_per_dof", s.median_ratio},
+          {"p95_nees_per_dof", s.p95_ratio},
+          {"above_95", s.above_95},
+          {"beyond_3_sigma", s.beyond_3_sigma},
+          {"per_loop", rows},
+          {"per_loop_columns", {"query", "match", "pose_kind", "dof", "nees"}}};
+}
+
 void AddGtLoopEvaluation(const RunFlags& flags, const PipelineOptions& options,
                          const PipelineResult& result, const Trajectory& gt, const LoopTruth& truth,
                          const std::filesystem::path& out, nlohmann::json& summary) {
@@ -240,10 +310,12 @@ int RunRun(int argc, char** argv) {
       ReadCovarianceFlag(run_flags.covariance_path, dataset, options.raw_association_max_dt);
   std::string gt_file;  // the file evaluated against
   std::optional<Trajectory> gt = GroundTruthFor(run_flags.gt_path, dataset, &gt_file);
+  const std::optional<std::vector<double>> raw_scale =
+      RawScaleFor(run_flags, dataset, gt.has_value());
   // Every input is read: the folder now holds this run only.
   PrepareRunFolder(flags.out, "run", flags.dataset, kRunOutputFiles,
                    {flags.config, flags.poses, run_flags.gt_path, run_flags.map_path,
-                    run_flags.covariance_path});
+                    run_flags.covariance_path, run_flags.raw_scale_path});
   if (gt) GiveFrameTimestamps(dataset, &*gt);
 
   ProgressLine progress("run", flags.quiet);
@@ -296,6 +368,7 @@ int RunRun(int argc, char** argv) {
   }
   AddOptimizerJson(result, summary);
   if (truth) AddGtLoopEvaluation(run_flags, options, result, *gt, *truth, out, summary);
+  if (gt && raw_scale) summary["loop_nees"] = LoopNeesJson(result, *gt, *raw_scale);
   summary["config"] = ConfigToJson(options);
 
   std::optional<TrajectoryEvaluation> eval_raw, eval_corrected;

@@ -292,6 +292,7 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
     LoopResult& r = event.result;
     if (r.detected() && r.match_session == 0) {
       result.loops.push_back(r);
+      result.loop_information.push_back(event.loop_information);
       loop_index.push_back(event.loop_index);
     } else if (r.detected()) {
       result.cross_session_loops.push_back(r);

@@ -12,103 +12,11 @@
 #include <Eigen/SparseCore>
 
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/statistics.h"
 #include "sparseloop/posegraph/pose_graph.h"
 
 namespace sparseloop {
 namespace {
-
-// Chi-square quantile (Wilson-Hilferty approximation; within ~1% for dof >= 3 at p = 0.99).
-double Chi2Quantile(double p, int dof) {
-  // Normal quantile by Acklam's rational approximation (central region is enough here).
-  const double q = p - 0.5;
-  double z;
-  if (std::abs(q) <= 0.425) {
-    const double r = 0.180625 - q * q;
-    z = q *
-        (((((((2509.0809287301226727 * r + 33430.575583588128105) * r + 67265.770927008700853) * r +
-             45921.953931549871457) *
-                r +
-            13731.693765509461125) *
-               r +
-           1971.5909503065514427) *
-              r +
-          133.14166789178437745) *
-             r +
-         3.387132872796366608) /
-        (((((((5226.495278852545925 * r + 28729.085735721942674) * r + 39307.89580009271061) * r +
-             21213.794301586595867) *
-                r +
-            5394.1960214247511077) *
-               r +
-           687.1870074920579083) *
-              r +
-          42.313330701600911252) *
-             r +
-         1.0);
-  } else {
-    double r = q < 0 ? p : 1.0 - p;
-    r = std::sqrt(-std::log(r));
-    double val;
-    if (r <= 5.0) {
-      r -= 1.6;
-      val = (((((((7.7454501427834140764e-4 * r + 0.0227238449892691845833) * r +
-                  0.24178072517745061177) *
-                     r +
-                 1.27045825245236838258) *
-                    r +
-                3.64784832476320460504) *
-                   r +
-               5.7694972214606914055) *
-                  r +
-              4.6303378461565452959) *
-                 r +
-             1.42343711074968357734) /
-            (((((((1.05075007164441684324e-9 * r + 5.475938084995344946e-4) * r +
-                  0.0151986665636164571966) *
-                     r +
-                 0.14810397642748007459) *
-                    r +
-                0.68976733498510000455) *
-                   r +
-               1.6763848301838038494) *
-                  r +
-              2.05319162663775882187) *
-                 r +
-             1.0);
-    } else {
-      r -= 5.0;
-      val = (((((((2.01033439929228813265e-7 * r + 2.71155556874348757815e-5) * r +
-                  0.0012426609473880784386) *
-                     r +
-                 0.026532189526576123093) *
-                    r +
-                0.29656057182850489123) *
-                   r +
-               1.7848265399172913358) *
-                  r +
-              5.4637849111641143699) *
-                 r +
-             6.6579046435011037772) /
-            (((((((2.04426310338993978564e-15 * r + 1.4215117583164458887e-7) * r +
-                  1.8463183175100546818e-5) *
-                     r +
-                 7.868691311456132591e-4) *
-                    r +
-                0.0148753612908506148525) *
-                   r +
-               0.13692988092273580531) *
-                  r +
-              0.59983220655588793769) *
-                 r +
-             1.0);
-    }
-    z = q < 0 ? -val : val;
-  }
-  const double k = dof;
-  const double a = 2.0 / (9.0 * k);
-  const double c = 1.0 - a + z * std::sqrt(a);
-  return k * c * c * c;
-}
 
 // The directions an information matrix observes: eigenvalues above 1e-9 of the largest.
 template <int N>
@@ -460,7 +368,7 @@ void PoseGraph::ExtendPcmAdjacency(const PcmOptions& options, size_t from,
   const std::vector<Sim3d>& poses = rescale ? rescaled : raw_poses_;
   const ChainStatistics& chains = rescale ? *rescaled_chains : raw_chains;
   std::vector<double> thresholds(8, 0.0);
-  for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = Chi2Quantile(options.confidence, dof);
+  for (int dof = 1; dof <= 7; ++dof) thresholds[dof] = ChiSquareQuantile(options.confidence, dof);
   // The single-loop odometry test: the loop's residual at the raw poses against zero, with
   // the loop's full information (its marginal variances alone would call a loop whose rotation
   // is well known only together with its translation, as a two-view Sim(3) without depths is,
@@ -565,8 +473,8 @@ std::vector<size_t> PassOdometryTest(const PcmOptions& options, const std::vecto
                                      const std::vector<int>& dof) {
   std::vector<double> median(7, 1.0), threshold(7, 0.0);  // by dof (at most 6)
   for (int d = 1; d <= 6; ++d) {
-    median[d] = Chi2Quantile(0.5, d);
-    threshold[d] = Chi2Quantile(options.odometry_check_confidence, d);
+    median[d] = ChiSquareQuantile(0.5, d);
+    threshold[d] = ChiSquareQuantile(options.odometry_check_confidence, d);
   }
   std::vector<size_t> pass;
   std::vector<double> ratio;
@@ -634,7 +542,7 @@ LoopResidualCheck PoseGraph::CheckLoop(size_t index, double confidence) const {
   const Matrix7d info = LoopEffectiveInformation(loop);
   check.chi2 = r.dot(info * r);
   check.dof = ObservableDof<7>(info);
-  check.threshold = check.dof > 0 ? Chi2Quantile(confidence, check.dof) : 0.0;
+  check.threshold = check.dof > 0 ? ChiSquareQuantile(confidence, check.dof) : 0.0;
   check.consistent = check.dof == 0 || check.chi2 <= check.threshold;
   check.translation_error = r.head<3>().norm();
   check.rotation_error_rad = r.segment<3>(3).norm();

@@ -108,6 +108,7 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
                   r.match_id, e.what());
     return event;
   }
+  event.loop_information = LoopEffectiveInformation(edge);
   optimizer_->PushLoop(edge);
   event.loop_in_graph = true;
   event.loop_index = static_cast<int64_t>(num_loops_++);

@@ -1,6 +1,8 @@
 #include "sparseloop/core/statistics.h"
 
+#include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include <gtest/gtest.h>
 
@@ -39,6 +41,33 @@ TEST(Statistics, PercentileIsMonotoneAndWithinTheValues) {
       last = p;
     }
   }
+}
+
+}  // namespace
+}  // namespace sparseloop
+
+namespace sparseloop {
+namespace {
+
+// Against tabulated chi-square quantiles (e.g. NIST/SEMATECH): within 1.5 % for dof >= 3 over
+// the quantiles the NEES and PCM checks use, 3 % in the lower tail (Wilson-Hilferty: 1.268
+// against 1.237 at p = 0.025, dof 6); bad arguments throw.
+TEST(ChiSquareQuantile, MatchesTablesAndRefusesBadArguments) {
+  struct Row {
+    double p;
+    int dof;
+    double value;
+  };
+  for (const Row& r : {Row{0.95, 6, 12.592}, Row{0.975, 6, 14.449}, Row{0.025, 6, 1.237},
+                       Row{0.95, 7, 14.067}, Row{0.99, 3, 11.345}, Row{0.5, 7, 6.346},
+                       Row{0.9973, 6, 20.062}, Row{0.025, 700, 628.0}, Row{0.975, 700, 775.8}}) {
+    SCOPED_TRACE(testing::Message() << r.p << " " << r.dof);
+    EXPECT_NEAR(ChiSquareQuantile(r.p, r.dof), r.value, (r.p < 0.05 ? 0.03 : 0.015) * r.value);
+  }
+  EXPECT_THROW(ChiSquareQuantile(0.0, 3), std::invalid_argument);
+  EXPECT_THROW(ChiSquareQuantile(1.0, 3), std::invalid_argument);
+  EXPECT_THROW(ChiSquareQuantile(0.5, 0), std::invalid_argument);
+  EXPECT_THROW(ChiSquareQuantile(std::nan(""), 3), std::invalid_argument);
 }
 
 }  // namespace

@@ -58,6 +58,9 @@ struct PipelineResult {
   // Per entry of `loops`: kept by the pose graph (in the graph and not rejected by PCM); without
   // the optimiser (RunDetection) every loop, as nothing rejects it.
   std::vector<bool> loop_accepted;
+  // Per entry of `loops`: the information its edge has in the graph (LoopEvent::loop_information;
+  // zero when not in the graph).
+  std::vector<Matrix7d> loop_information;
   // Loops whose match is a keyframe of an earlier map session (LoopResult::match_session > 0).
   // Not in the pose graph (their world frame differs); stored in the map with accepted = 0.
   std::vector<LoopResult> cross_session_loops;

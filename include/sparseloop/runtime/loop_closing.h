@@ -50,6 +50,11 @@ struct LoopEvent {
   // With loop_in_graph: index of the loop in the graph's loop list, the index that
   // PoseGraphSummary::rejected_loops (PCM) refers to; -1 otherwise.
   int64_t loop_index = -1;
+  // With loop_in_graph: the information of the loop edge as the graph weighs it
+  // (LoopEffectiveInformation: the estimate's, inflated, with the floors), in the tangent order
+  // [upsilon, omega, sigma] of a right perturbation of match_from_query; for checking it against
+  // the exact relative pose (eval/loop_nees.h).
+  Matrix7d loop_information = Matrix7d::Zero();
 };
 
 // The corrected pose of one keyframe (CorrectedPose).
