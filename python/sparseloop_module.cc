@@ -9,6 +9,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cmath>
 #include <memory>
@@ -326,6 +327,10 @@ class PyLoopClosing {
   PyLoopClosing(const py::object& config, const py::object& preset, bool solve_while_running,
                 bool optimize, py::object on_correction) {
     LoopClosing::CorrectionCallback cb;
+    if (!on_correction.is_none() && !PyCallable_Check(on_correction.ptr())) {
+      throw std::invalid_argument(fmt::format("on_correction: expected a callable or None, got {}",
+                                              py::repr(on_correction).cast<std::string>()));
+    }
     if (!on_correction.is_none()) {
       callback_ = std::make_shared<py::object>(std::move(on_correction));
       std::shared_ptr<py::object> f = callback_;
@@ -528,18 +533,29 @@ the path of a JSON config file. preset: a shipped preset applied before config (
   m.def(
       "default_config",
       [](const std::string& scope, const std::string& preset) {
+        // The CLI's names: "run" (every key, also "") and "detect" (the detector object).
+        if (scope != "" && scope != "run" && scope != "detect") {
+          throw std::invalid_argument(
+              fmt::format("scope: expected 'run' (every key) or 'detect', got '{}'", scope));
+        }
         PipelineOptions options;
-        if (!preset.empty()) ApplyPreset(preset, &options);
-        return ToPython(DumpConfig(options, scope));
+        if (!preset.empty()) {
+          try {
+            ApplyPreset(preset, &options);
+          } catch (const std::invalid_argument& e) {
+            throw std::invalid_argument(std::string("preset: ") + e.what());
+          }
+        }
+        return ToPython(DumpConfig(options, scope == "detect" ? "detector" : ""));
       },
-      py::arg("scope") = "", py::arg("preset") = "",
+      py::arg("scope") = "run", py::arg("preset") = "",
       "Every config key with its default (or the preset's value), plus 'doc' (as `sparseloop "
-      "config --dump [--preset NAME]`).");
+      "config --dump [run|detect] [--preset NAME]`).");
   m.def("presets", &PresetNames, "The names of the shipped presets (LoopClosing(preset=...)).");
 
   m.def(
       "read_trajectory",
-      [](const std::string& path, const std::string& format) {
+      [](const std::filesystem::path& path, const std::string& format) {
         Trajectory t;
         {
           py::gil_scoped_release release;
@@ -552,7 +568,7 @@ the path of a JSON config file. preset: a shipped preset applied before config (
       "'has_rotation', 'has_timestamps'}");
   m.def(
       "write_trajectory",
-      [](const std::string& path,
+      [](const std::filesystem::path& path,
          const py::array_t<double, py::array::c_style | py::array::forcecast>& poses,
          const py::object& timestamps, const std::string& format) {
         const Trajectory t = TrajectoryFromNumpy(poses, timestamps);
@@ -563,7 +579,8 @@ the path of a JSON config file. preset: a shipped preset applied before config (
       py::arg("format") = "tum");
   m.def(
       "evaluate_trajectory",
-      [](const std::string& gt_path, const std::string& est_path, const std::string& alignment) {
+      [](const std::filesystem::path& gt_path, const std::filesystem::path& est_path,
+         const std::string& alignment) {
         nlohmann::json j;
         {
           py::gil_scoped_release release;
@@ -579,13 +596,13 @@ the path of a JSON config file. preset: a shipped preset applied before config (
       "writes for a trajectory.");
   m.def(
       "read_image",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         // Read as `run` reads a frame: a file that cannot be opened is not handed to OpenCV (its
         // warning line), and the error says why.
         DatasetFrame frame;
         frame.image_path = path;
         const cv::Mat img = ReadFrameGray(Dataset{}, frame);
-        if (img.empty()) throw FileError(path, 0, "an image file", ImageReadProblem(path));
+        if (img.empty()) throw FileError(path.string(), 0, "an image file", ImageReadProblem(path));
         py::array_t<uint8_t> a({img.rows, img.cols});
         for (int r = 0; r < img.rows; ++r)
           std::copy(img.ptr<uint8_t>(r), img.ptr<uint8_t>(r) + img.cols, a.mutable_data(r, 0));
@@ -594,7 +611,7 @@ the path of a JSON config file. preset: a shipped preset applied before config (
       py::arg("path"), "An image file as a uint8 (H, W) grayscale array.");
   m.def(
       "read_mapped_pixels",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         const MappedPixels mp = ReadMappedPixels(path);
         py::array_t<float> px({static_cast<py::ssize_t>(mp.pixels.size()), py::ssize_t{2}});
         for (size_t i = 0; i < mp.pixels.size(); ++i) {

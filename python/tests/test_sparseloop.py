@@ -223,9 +223,21 @@ def test_eval_dict_has_known_values(tmp_path):
                                        alignment="bogus")
 
 
+def test_paths_may_be_pathlib_paths(tmp_path):
+    """Every path argument takes os.PathLike as open() does (a pathlib.Path was a pybind11
+    TypeError)."""
+    path = tmp_path / "t.txt"
+    sparseloop.write_trajectory(path, np.stack([np.eye(4)] * 3), [0.0, 1.0, 2.0])
+    read = sparseloop.read_trajectory(path)
+    assert read["poses"].shape == (3, 4, 4)
+    assert sparseloop.evaluate_trajectory(path, path)["ate"]["rmse"] == pytest.approx(0.0)
+    with pytest.raises(sparseloop.FileError):
+        sparseloop.read_mapped_pixels(tmp_path / "missing.txt")
+
+
 def test_presets_configure_the_closer_and_an_unknown_one_is_named():
     assert sparseloop.presets() == ["dense", "sparse"]
-    sparse = sparseloop.default_config("detector", preset="sparse")
+    sparse = sparseloop.default_config("detect", preset="sparse")
     assert sparse["detector"]["features"]["max_features"] == 20
     assert sparse["detector"]["asymmetric_matching"] is True
     # config goes on top of the preset
@@ -237,4 +249,11 @@ def test_presets_configure_the_closer_and_an_unknown_one_is_named():
     with pytest.raises(ValueError, match=r"preset: expected a preset name \(dense \| sparse\) or None, got 3"):
         sparseloop.LoopClosing(preset=3)
     sparseloop.LoopClosing(preset=None)  # the defaults
+    # The CLI's scope names; others refused (they returned an empty dump).
+    assert sparseloop.default_config("detect").keys() == {"detector", "doc"}
+    assert "optimizer" in sparseloop.default_config("run")
+    with pytest.raises(ValueError, match=r"scope: expected 'run' \(every key\) or 'detect', got 'bogus'"):
+        sparseloop.default_config("bogus")
+    with pytest.raises(ValueError, match=r"on_correction: expected a callable or None, got 5"):
+        sparseloop.LoopClosing(on_correction=5)
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "sparseloop/core/error.h"
 #include "sparseloop/io/atomic_file.h"
@@ -71,6 +72,13 @@ inline void CheckOutputFileFlag(const std::string& flag, const std::string& path
 inline void CheckOutputDirFlag(const std::string& flag, const std::string& dir,
                                const std::vector<std::string>& file_names = {}) {
   NameTheFlag(flag, [&] { CheckOutputDirectory(dir, file_names); });
+}
+
+// A JSON document as the commands write it (summary.json, eval --json, render.json): indented, one
+// trailing newline. A path or name that is not UTF-8 (a file named with byte 0xFF) is written with
+// U+FFFD in its place: JSON holds UTF-8 only, and the run's work must not be lost to it.
+inline std::string JsonText(const nlohmann::json& j) {
+  return j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 // The files a command writes into its --out folder `dir`, each named by `flag`, as outputs for

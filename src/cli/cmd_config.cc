@@ -27,7 +27,7 @@ int RunConfig(int argc, char** argv) {
   PipelineOptions options;
   if (!preset.empty()) ApplyPreset(preset, &options);
   // `detect` reads the "detector" object of --config, `run` every key.
-  std::cout << DumpConfig(options, command == "detect" ? "detector" : "").dump(2) << "\n";
+  std::cout << JsonText(DumpConfig(options, command == "detect" ? "detector" : ""));
   return 0;
 }
 

@@ -139,8 +139,7 @@ int RunDetect(int argc, char** argv) {
                       {"prior_keyframes", result.prior_keyframes}};
   }
   summary["config"] = ConfigToJson(options)["detector"];
-  WriteFileAtomically(out / "summary.json",
-                      [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
+  WriteFileAtomically(out / "summary.json", [&](std::ostream& os) { os << JsonText(summary); });
   PrintDetectSummary(summary, result, loops, options, have_poses);
   return 0;
 }

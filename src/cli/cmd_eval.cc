@@ -254,7 +254,7 @@ void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
                                                         : nlohmann::json(nullptr)},
                         {"mean_candidates", coverage->mean_candidates}};
   }
-  WriteFileAtomically(f.json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+  WriteFileAtomically(f.json_path, [&](std::ostream& out) { out << JsonText(j); });
   std::cout << "wrote " << f.json_path << "\n";
 }
 

@@ -16,6 +16,7 @@
 #include "cli/cli_util.h"
 #include "cli/command.h"
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/trajectory_io.h"
 #include "sparseloop/pipeline/kitti_sequence.h"
@@ -150,8 +151,10 @@ void ApplyRenderFlags(RenderFlags* f) {
   seq.render.seed = syn::HashCombine(f->seed, 1);
   seq.drift.seed = syn::HashCombine(f->seed, 2);
   seq.photometric.seed = syn::HashCombine(f->seed, 3);
-  SL_CHECK_MSG(f->drift_scale >= 0.0 && std::isfinite(f->drift_scale),
-               "--drift must be >= 0, got {}", f->drift_scale);
+  // 50 x the default drift is a raw trajectory that no longer resembles the path; beyond it the
+  // simulator's own bounds would fail with their field names.
+  SL_CHECK_MSG(f->drift_scale >= 0.0 && f->drift_scale <= 50.0,
+               "--drift must be in [0, 50], got {}", f->drift_scale);
   SL_CHECK_MSG(f->photometric_scale >= 0.0 && std::isfinite(f->photometric_scale),
                "--photometric must be >= 0, got {}", f->photometric_scale);
   SL_CHECK_MSG(
@@ -277,10 +280,43 @@ void WriteRenderJson(const RenderFlags& f, size_t frames) {
       {"photometric", f.photometric_scale},
       {"poses_only", f.poses_only}};
   WriteFileAtomically(std::filesystem::path(f.out_dir) / "render.json",
-                      [&](std::ostream& os) { os << j.dump(2) << "\n"; });
+                      [&](std::ostream& os) { os << JsonText(j); });
 }
 
 }  // namespace
+
+// --out: a new or empty folder, or an earlier render (it holds render.json and only what render
+// writes), whose files and frame folders are removed first. A shorter render into a longer one
+// left the longer one's images beside the new poses, a folder `run` then refused; a copy of a real
+// sequence had its poses and calib.txt replaced. Anything else is refused before any work.
+void PrepareRenderFolder(const std::string& out, std::vector<std::string> own) {
+  namespace fs = std::filesystem;
+  const fs::path dir = ResolvedPath(out);
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;  // created later; CheckOutputDirFlag checked it
+  for (const char* name : {"calib.txt", "image_0", "mapped", "depth_0"}) own.push_back(name);
+  std::vector<std::string> entries, foreign;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    entries.push_back(name);
+    if (std::find(own.begin(), own.end(), name) == own.end()) foreign.push_back(name);
+  }
+  if (entries.empty()) return;
+  if (!foreign.empty() || !fs::is_regular_file(dir / "render.json", ec)) {
+    std::sort(foreign.begin(), foreign.end());
+    throw std::invalid_argument(fmt::format(
+        "--out {}: expected an empty folder or the output of an earlier `sparseloop render`, got "
+        "{}; choose another --out",
+        out,
+        foreign.empty() ? std::string("a folder without render.json")
+                        : fmt::format("a folder holding {} other entr{} ({}{})", foreign.size(),
+                                      foreign.size() == 1 ? "y" : "ies", foreign.front(),
+                                      foreign.size() > 1 ? ", ..." : "")));
+  }
+  for (const std::string& name : entries) fs::remove_all(dir / name, ec);
+  Logger().info("render: removed the earlier render in {} ({} entries)", dir.string(),
+                entries.size());
+}
 
 int RunRender(int argc, char** argv) {
   CLI::App app{"Render a synthetic sequence (KITTI folder layout) with exact ground truth"};
@@ -299,6 +335,7 @@ int RunRender(int argc, char** argv) {
   CheckOutputDirFlag("--out", f.out_dir, files);
   f.out_dir = ResolvedPath(f.out_dir).string();  // DIR/missing/.. is DIR
   ApplyRenderFlags(&f);
+  PrepareRenderFolder(f.out_dir, files);
 
   const Scene scene = BuildScene(f, MakeTextures(f));
   const Trajectory gt = SliceTrajectory(f, scene.gt);

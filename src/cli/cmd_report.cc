@@ -1,4 +1,7 @@
 // sparseloop report: one-page HTML report of a run folder (plots by scripts/report.py).
+#include <unistd.h>
+
+#include <filesystem>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -24,6 +27,20 @@ int RunReport(int argc, char** argv) {
                  "run's own, summary.json gt_loop_distance; else 10)");
   Parse(app, argc, argv);
   CheckNamingFlags({{"false_loop_distance", "--false-loop-distance"}}, [&] { options.Check(); });
+  if (!python.empty()) {
+    // A missing interpreter was "report.py failed with exit code -1" (exit 1).
+    std::error_code ec;
+    const bool file = std::filesystem::is_regular_file(python, ec);
+    if (!file || ::access(python.c_str(), X_OK) != 0) {
+      std::cerr << "sparseloop report: --python " << python
+                << ": expected an executable Python interpreter, got "
+                << (file                                  ? "a file that is not executable"
+                    : std::filesystem::exists(python, ec) ? "something other than a file"
+                                                          : "no such file")
+                << "\n";
+      return 2;
+    }
+  }
   options.script = script;
   options.python = python;
   const auto result = cli::MakeReport(dir, options);

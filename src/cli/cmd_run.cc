@@ -87,10 +87,11 @@ void CheckRunFlags(const RunFlags& f) {
     throw std::invalid_argument(
         fmt::format("--gt-min-path must be a path length >= 0, got {}", *f.gt_min_path));
   }
-  if (f.gt_loop_distance != -1.0 &&
-      !(std::isfinite(f.gt_loop_distance) && f.gt_loop_distance > 0.0)) {
-    throw std::invalid_argument(
-        fmt::format("--gt-loop-distance must be a distance > 0, got {}", f.gt_loop_distance));
+  // At most 1e12 GT units: the GT revisits' default minimum path is 4 x this distance, which
+  // must stay finite (1e308 failed after every frame was processed).
+  if (f.gt_loop_distance != -1.0 && !(f.gt_loop_distance > 0.0 && f.gt_loop_distance <= 1e12)) {
+    throw std::invalid_argument(fmt::format(
+        "--gt-loop-distance must be a distance in (0, 1e12], got {}", f.gt_loop_distance));
   }
   // Raw poses: --poses, else the rosbag: dataset's pose topic (checked before anything is read).
   if (f.detector.poses.empty() && !DatasetHasPoseTopic(f.detector.dataset)) {
@@ -381,8 +382,7 @@ int RunRun(int argc, char** argv) {
     eval_corrected = EvaluateTrajectory(*gt, result.corrected, eo);
     summary["eval"] = {{"raw", ToJson(*eval_raw)}, {"corrected", ToJson(*eval_corrected)}};
   }
-  WriteFileAtomically(out / "summary.json",
-                      [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
+  WriteFileAtomically(out / "summary.json", [&](std::ostream& os) { os << JsonText(summary); });
 
   PrintRunSummary(std::cout, summary, eval_raw ? &*eval_raw : nullptr,
                   eval_corrected ? &*eval_corrected : nullptr);

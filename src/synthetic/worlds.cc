@@ -70,10 +70,12 @@ std::string ToString(FlightPlan plan) {
 }
 
 void FlightPlanOptions::Check() const {
-  SL_CHECK_MSG(altitude > 1.0, "altitude must be > 1 metre, got {}", altitude);
-  SL_CHECK_MSG(size > 1.0, "size must be > 1 metre, got {}", size);
+  // Upper bounds keep the plan's cost bounded (its dense path grows with size x laps).
+  SL_CHECK_MSG(altitude > 1.0 && altitude <= 1e4, "altitude must be in (1, 10000] metres, got {}",
+               altitude);
+  SL_CHECK_MSG(size > 1.0 && size <= 1e5, "size must be in (1, 100000] metres, got {}", size);
   SL_CHECK_MSG(tilt_deg >= 0.0 && tilt_deg < 80.0, "tilt_deg must be in [0, 80), got {}", tilt_deg);
-  SL_CHECK_MSG(laps >= 1, "laps must be >= 1, got {}", laps);
+  SL_CHECK_MSG(laps >= 1 && laps <= 1000, "laps must be in [1, 1000], got {}", laps);
   SL_CHECK_MSG(lawnmower_strips >= 2, "lawnmower_strips must be >= 2, got {}", lawnmower_strips);
   SL_CHECK_MSG(frames >= 2, "frames must be >= 2, got {}", frames);
   SL_CHECK_MSG(frame_rate_hz > 0.0, "frame_rate_hz must be > 0, got {}", frame_rate_hz);

@@ -195,6 +195,20 @@ TEST(CliEval, MissingFileExits2) {
   EXPECT_EQ(RunCli({"eval", "--gt", (dir / "gt.txt").string()}).exit_code, 2);  // --est missing
 }
 
+// A file name that is not UTF-8 (byte 0xE9 of Latin-1) is written into the JSON as U+FFFD: the
+// metrics were printed, then a JSON encoding error ended the command with exit 1 and no file.
+TEST(CliEval, ANonUtf8FileNameStillGivesTheJson) {
+  const auto dir = FixtureDir();
+  const auto gt = dir / "gt\xe9.txt";
+  WriteHandMadePositions(gt);
+  const auto json = dir / "m.json";
+  const auto r =
+      RunCli({"eval", "--gt", gt.string(), "--est", gt.string(), "--json", json.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = ReadJson(json);
+  EXPECT_NE(j.dump().find("gt\xEF\xBF\xBD.txt"), std::string::npos) << j.dump();
+}
+
 // No estimate pose pairs with a ground-truth pose: exit 2 naming both files, not an empty table.
 TEST(CliEval, NoAssociatedPairsExits2NamingBothFiles) {
   const auto dir = FixtureDir();

@@ -2,6 +2,7 @@
 // message that names the flag the user typed, never a C++ expression or a source path.
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -49,7 +50,26 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
   // Checked when parsed, not after the run (the image folder is empty).
   ExpectNamesTheFlag({"run", "--dataset", images, "--poses", gt, "--intrinsics", "50,50,32,24",
                       "--gt-loop-distance", "nan", "--out", out},
-                     "--gt-loop-distance must be a distance > 0, got nan");
+                     "--gt-loop-distance must be a distance in (0, 1e12], got nan");
+  // 1e308 passed the check and failed after every frame (4 x it is the default minimum path).
+  ExpectNamesTheFlag({"run", "--dataset", images, "--poses", gt, "--intrinsics", "50,50,32,24",
+                      "--gt-loop-distance", "1e308", "--out", out},
+                     "--gt-loop-distance must be a distance in (0, 1e12], got 1e+308");
+  // render: values whose cost grew without bound (--laps 1e9 ran for minutes, --size 1e7 took
+  // gigabytes), or that failed on a library field's name (--drift 1e300).
+  for (const auto& [flag, value, message] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"--laps", "1000000000", "--laps must be in [1, 1000], got 1000000000"},
+           {"--size", "1e7", "--size must be in (1, 100000] metres, got 10000000"},
+           {"--altitude", "1e308", "--altitude must be in (1, 10000] metres, got 1e+308"},
+           {"--drift", "1e300", "--drift must be in [0, 50], got 1e+300"}}) {
+    ExpectNamesTheFlag({"render", "--world", "aerial", "--frames", "3", "--poses-only", flag, value,
+                        "--out", (dir / "r").string()},
+                       message);
+  }
+  ExpectNamesTheFlag({"report", dir.string(), "--python", (dir / "no_python").string()},
+                     "--python " + (dir / "no_python").string() +
+                         ": expected an executable Python interpreter, got no such file");
   ExpectNamesTheFlag({"optimize", "--g2o", (dir / "g.g2o").string(), "--out",
                       (dir / "o.g2o").string(), "--loss-scale", "-1"},
                      "--loss-scale must be > 0, got -1");
@@ -61,7 +81,7 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
                       "-3", "--loops", (dir / "loops.csv").string()},
                      "--view-angle must be in (0, 180], got -3");
   ExpectNamesTheFlag({"render", "--world", "aerial", "--altitude", "-4", "--out", out},
-                     "--altitude must be > 1 metre, got -4");
+                     "--altitude must be in (1, 10000] metres, got -4");
   ExpectNamesTheFlag({"render", "--world", "aerial", "--noise", "-4", "--out", out},
                      "--noise must be >= 0, got -4");
   ExpectNamesTheFlag({"report", dir.string(), "--false-loop-distance", "-1"},

@@ -437,3 +437,46 @@ TEST(ReportCli, MissingFolderOrTrajectoryFails) {
 
 }  // namespace
 }  // namespace sparseloop::test
+
+namespace sparseloop::test {
+namespace {
+
+// --out holding an earlier render is replaced whole: a 5-frame render into an 8-frame one left 8
+// images beside 5 poses, a folder `run` refused. A folder with anything else (a copy of a real
+// sequence with the user's notes) is refused before any work and kept as it was.
+TEST(RenderCli, AnEarlierRenderIsReplacedWholeAndAForeignFolderIsRefused) {
+  const auto dir = TempDir();
+  const std::string out = (dir / "r").string();
+  const auto render = [&](const std::string& frames) {
+    return RunCli({"render", "--world", "aerial", "--frames", frames, "--out", out});
+  };
+  ASSERT_EQ(render("8").exit_code, 0);
+  const CliResult again = render("5");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  size_t images = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "r" / "image_0"))
+    images += e.is_regular_file();
+  EXPECT_EQ(images, 5u);
+  size_t mapped = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "r" / "mapped"))
+    mapped += e.is_regular_file();
+  EXPECT_EQ(mapped, 5u);
+  WriteText(dir / "r" / "notes.txt", "mine\n");
+  const CliResult refused = render("3");
+  EXPECT_EQ(refused.exit_code, 2) << refused.err;
+  EXPECT_NE(refused.err.find("got a folder holding 1 other entry (notes.txt)"), std::string::npos)
+      << refused.err;
+  EXPECT_EQ(ReadText(dir / "r" / "notes.txt"), "mine\n");
+  EXPECT_TRUE(std::filesystem::exists(dir / "r" / "image_0" / "000004.png"));
+  // A sequence folder without render.json (not ours) is refused too.
+  std::filesystem::create_directories(dir / "kitti" / "image_0");
+  WriteText(dir / "kitti" / "times.txt", "0\n");
+  const CliResult foreign =
+      RunCli({"render", "--world", "aerial", "--frames", "3", "--out", (dir / "kitti").string()});
+  EXPECT_EQ(foreign.exit_code, 2) << foreign.err;
+  EXPECT_NE(foreign.err.find("a folder without render.json"), std::string::npos) << foreign.err;
+  EXPECT_EQ(ReadText(dir / "kitti" / "times.txt"), "0\n");
+}
+
+}  // namespace
+}  // namespace sparseloop::test
