@@ -118,7 +118,7 @@ def run_all(r, quick):
                 else seqs["street07"][1])
         drift_tasks.append((f"drift_{d:g}", [r.bin, "render", *base, "--poses-only",
                                              "--drift", str(d), "--out", out],
-                            out / "poses_raw.txt"))
+                            out / "render.json"))
     r.parallel(drift_tasks)
     family_tasks, family = family_renders(r, seqs, drift_family(quick), threads)
     r.parallel(family_tasks)

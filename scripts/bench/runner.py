@@ -4,6 +4,7 @@ import datetime
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import time
@@ -33,6 +34,12 @@ class Runner:
         """Runs a command (list) with its output in logs/NAME.log; returns seconds taken."""
         if self.reuse and done_marker is not None and Path(done_marker).exists():
             return 0.0
+        if len(args) > 1 and args[1] == "render":
+            # render refuses an --out that is not one of its finished renders (render.json, written
+            # last): a render cut off earlier leaves a folder without it, rendered again whole.
+            out = Path(args[args.index("--out") + 1])
+            if out.is_dir() and not (out / "render.json").exists():
+                shutil.rmtree(out)
         log = self.log_dir / f"{name}.log"
         t0 = time.time()
         with open(log, "w") as f:
@@ -75,7 +82,7 @@ def render_tasks(r, seqs, threads):
             args = with_frames(args, r.smoke_frames)
         out = r.out / "seq" / name
         tasks.append((f"render_{name}", [r.bin, "render", *args, "--threads", threads,
-                                         "--out", out], out / "times.txt"))
+                                         "--out", out], out / "render.json"))
     return tasks
 
 
