@@ -24,6 +24,10 @@ void CameraIntrinsics::Check() const {
                fx);
   SL_CHECK_MSG(std::isfinite(fy) && fy > 0, "intrinsics: fy must be positive and finite, got {}",
                fy);
+  // Below 1 pixel no lens either (fx = 1 on a 640-pixel image is a 179 degree field of view): a
+  // focal length of 1e-300 passed and failed later as "keypoint coordinate is not finite".
+  SL_CHECK_MSG(fx >= 1.0, "intrinsics: fx must be at least 1 pixel, got {}", fx);
+  SL_CHECK_MSG(fy >= 1.0, "intrinsics: fy must be at least 1 pixel, got {}", fy);
   // Beyond any lens (an 8000-pixel image with a 1 degree field of view has fx ~ 4.6e5), and what
   // keeps every projection inside the float range of the stored keyframes.
   SL_CHECK_MSG(fx <= kMaxFocalLength, "intrinsics: fx must be at most {} pixels, got {}",

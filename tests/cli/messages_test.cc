@@ -41,6 +41,9 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
     ExpectNamesTheFlag({command, "--dataset", images, "--poses", gt, "--intrinsics",
                         "-5,500,320,240", "--out", out},
                        "--intrinsics: fx must be positive and finite, got -5");
+    ExpectNamesTheFlag({command, "--dataset", images, "--poses", gt, "--intrinsics",
+                        "1e-300,1e-300,320,240", "--out", out},
+                       "--intrinsics: fx must be at least 1 pixel, got 1e-300");
     ExpectNamesTheFlag({command, "--dataset", images, "--poses", gt, "-K", "3", "--out", out},
                        "-K must be in [5, 10000], got 3");
     ExpectNamesTheFlag(
