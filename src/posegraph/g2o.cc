@@ -73,6 +73,14 @@ struct Parser {
       Fail(fmt::format("a number ({})", what), "'" + token + "'");
     }
   }
+  // A position coordinate: also within 1e12 (a vertex at 1e300 made every cost inf and the solve
+  // "converge" on nan).
+  double Coordinate(const char* what) {
+    const double v = Number(what);
+    if (std::abs(v) > 1e12)
+      Fail(fmt::format("a coordinate ({}) within +-1e12", what), fmt::format("{}", v));
+    return v;
+  }
   int64_t Id(const char* what) {
     std::string token;
     if (!(fields >> token)) Fail(fmt::format("an integer id ({})", what), "end of line");
@@ -91,9 +99,9 @@ struct Parser {
   }
   // Separate statements: the evaluation order of constructor arguments is unspecified.
   Eigen::Vector3d Translation() {
-    const double x = Number("x");
-    const double y = Number("y");
-    const double z = Number("z");
+    const double x = Coordinate("x");
+    const double y = Coordinate("y");
+    const double z = Coordinate("z");
     return {x, y, z};
   }
   Eigen::Quaterniond Quaternion() {
@@ -159,7 +167,7 @@ struct G2oRecords {
     } else if (tag == "VERTEX_SE2") {
       SetDim(Dim::k2);
       const int64_t id = p.Id("vertex id");
-      const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+      const double x = p.Coordinate("x"), y = p.Coordinate("y"), theta = p.Number("theta");
       p.End();
       AddVertex(id, Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0)));
     } else if (tag == "EDGE_SE3:QUAT" || tag == "EDGE3") {
@@ -208,7 +216,7 @@ struct G2oRecords {
     PoseGraphEdge e;
     e.from = p.Id("from id");
     e.to = p.Id("to id");
-    const double x = p.Number("x"), y = p.Number("y"), theta = p.Number("theta");
+    const double x = p.Coordinate("x"), y = p.Coordinate("y"), theta = p.Number("theta");
     const std::vector<double> u = p.Numbers(6, "information");
     p.End();
     e.from_from_to = Sim3d(1.0, FromYaw(theta), Eigen::Vector3d(x, y, 0.0));

@@ -641,6 +641,10 @@ TEST(G2o, MalformedFilesThrowFileErrorWithLine) {
       {"VERTEX_SE2 0 0 0 0 7\n", 1},
       // A BOM, "\r\n" and lone "\r" line ends: the line an editor shows.
       {"\xEF\xBB\xBFVERTEX_SE2 0 0 0 0\r\nVERTEX_SE2 1 1 0 0\rFOO 1 2\r", 3},
+      // Coordinates beyond 1e12: every cost was inf and the solve "converged" on nan.
+      {"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1e300 0 0\n", 2},
+      {"VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 0 -2e12 0 0 0 0 1\n", 2},
+      {"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1e13 0 0 1 0 0 1 0 1\n", 3},
   };
   for (const auto& [text, line] : cases) {
     std::istringstream in(text);
