@@ -281,6 +281,15 @@ Trajectory TrajectoryFromNumpy(
   return t;
 }
 
+// The `preset` argument applied on `options`; an unknown name is a ValueError naming the argument.
+void ApplyPresetArgument(const std::string& name, PipelineOptions* options) {
+  try {
+    ApplyPreset(name, options);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("preset: ") + e.what());
+  }
+}
+
 // PipelineOptions from a config dict (the `--config` keys, strict), then the LoopClosing options
 // that compute what `run` computes (the mapping of tests/runtime/loop_closing_test.cc).
 LoopClosing::Options ClosingOptions(const py::object& config, const py::object& preset,
@@ -292,11 +301,7 @@ LoopClosing::Options ClosingOptions(const py::object& config, const py::object& 
                                               fmt::join(PresetNames(), " | "),
                                               py::repr(preset).cast<std::string>()));
     }
-    try {
-      ApplyPreset(preset.cast<std::string>(), &p);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("preset: ") + e.what());
-    }
+    ApplyPresetArgument(preset.cast<std::string>(), &p);
   }
   if (!config.is_none()) {
     if (py::isinstance<py::str>(config))
@@ -539,13 +544,7 @@ the path of a JSON config file. preset: a shipped preset applied before config (
               fmt::format("scope: expected 'run' (every key) or 'detect', got '{}'", scope));
         }
         PipelineOptions options;
-        if (!preset.empty()) {
-          try {
-            ApplyPreset(preset, &options);
-          } catch (const std::invalid_argument& e) {
-            throw std::invalid_argument(std::string("preset: ") + e.what());
-          }
-        }
+        if (!preset.empty()) ApplyPresetArgument(preset, &options);
         return ToPython(DumpConfig(options, scope == "detect" ? "detector" : ""));
       },
       py::arg("scope") = "run", py::arg("preset") = "",

@@ -116,9 +116,8 @@ def run_all(r, quick):
         out = r.out / "seq" / f"street07_drift{d:g}"
         base = (with_frames(seqs["street07"][1], r.smoke_frames) if r.smoke_frames
                 else seqs["street07"][1])
-        drift_tasks.append((f"drift_{d:g}", [r.bin, "render", *base, "--poses-only",
-                                             "--drift", str(d), "--out", out],
-                            out / "render.json"))
+        drift_tasks.append(render_task(r, f"drift_{d:g}",
+                                       [*base, "--poses-only", "--drift", str(d)], out))
     r.parallel(drift_tasks)
     family_tasks, family = family_renders(r, seqs, drift_family(quick), threads)
     r.parallel(family_tasks)

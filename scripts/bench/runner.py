@@ -34,12 +34,6 @@ class Runner:
         """Runs a command (list) with its output in logs/NAME.log; returns seconds taken."""
         if self.reuse and done_marker is not None and Path(done_marker).exists():
             return 0.0
-        if len(args) > 1 and args[1] == "render":
-            # render refuses an --out that is not one of its finished renders (render.json, written
-            # last): a render cut off earlier leaves a folder without it, rendered again whole.
-            out = Path(args[args.index("--out") + 1])
-            if out.is_dir() and not (out / "render.json").exists():
-                shutil.rmtree(out)
         log = self.log_dir / f"{name}.log"
         t0 = time.time()
         with open(log, "w") as f:
@@ -75,14 +69,22 @@ def with_frames(args, frames):
     return args
 
 
+def render_task(r, name, args, out):
+    """A `sparseloop render ARGS --out OUT` task, done when OUT/render.json exists (written last).
+    render refuses an --out that is not one of its finished renders: a render cut off earlier
+    left a folder without render.json, removed here to be rendered again whole."""
+    if out.is_dir() and not (out / "render.json").exists():
+        shutil.rmtree(out)
+    return (name, [r.bin, "render", *args, "--out", out], out / "render.json")
+
+
 def render_tasks(r, seqs, threads):
     tasks = []
     for name, (_, args) in seqs.items():
         if r.smoke_frames:
             args = with_frames(args, r.smoke_frames)
-        out = r.out / "seq" / name
-        tasks.append((f"render_{name}", [r.bin, "render", *args, "--threads", threads,
-                                         "--out", out], out / "render.json"))
+        tasks.append(render_task(r, f"render_{name}", [*args, "--threads", threads],
+                                 r.out / "seq" / name))
     return tasks
 
 

@@ -15,6 +15,7 @@
 
 #include "cli/cli_util.h"
 #include "cli/command.h"
+#include "cli/run_output.h"
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/io/atomic_file.h"
@@ -283,18 +284,21 @@ void WriteRenderJson(const RenderFlags& f, size_t frames) {
                       [&](std::ostream& os) { os << JsonText(j); });
 }
 
-}  // namespace
+// The folders render writes frames into (kitti_sequence.h), beside its files.
+const std::vector<std::string> kFrameFolders = {"image_0", "mapped", "depth_0"};
 
 // --out: a new or empty folder, or an earlier render (it holds render.json and only what render
-// writes), whose files and frame folders are removed first. A shorter render into a longer one
-// left the longer one's images beside the new poses, a folder `run` then refused; a copy of a real
-// sequence had its poses and calib.txt replaced. Anything else is refused before any work.
+// writes: `files`, calib.txt and the frame folders), which is removed first. A shorter render into
+// a longer one left the longer one's images beside the new poses, a folder `run` then refused; a
+// copy of a real sequence had its poses and calib.txt replaced. Anything else is refused before
+// any work.
 void PrepareRenderFolder(const std::string& out, std::vector<std::string> own) {
   namespace fs = std::filesystem;
   const fs::path dir = ResolvedPath(out);
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) return;  // created later; CheckOutputDirFlag checked it
-  for (const char* name : {"calib.txt", "image_0", "mapped", "depth_0"}) own.push_back(name);
+  own.push_back("calib.txt");
+  own.insert(own.end(), kFrameFolders.begin(), kFrameFolders.end());
   std::vector<std::string> entries, foreign;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string name = entry.path().filename().string();
@@ -302,21 +306,15 @@ void PrepareRenderFolder(const std::string& out, std::vector<std::string> own) {
     if (std::find(own.begin(), own.end(), name) == own.end()) foreign.push_back(name);
   }
   if (entries.empty()) return;
-  if (!foreign.empty() || !fs::is_regular_file(dir / "render.json", ec)) {
-    std::sort(foreign.begin(), foreign.end());
-    throw std::invalid_argument(fmt::format(
-        "--out {}: expected an empty folder or the output of an earlier `sparseloop render`, got "
-        "{}; choose another --out",
-        out,
-        foreign.empty() ? std::string("a folder without render.json")
-                        : fmt::format("a folder holding {} other entr{} ({}{})", foreign.size(),
-                                      foreign.size() == 1 ? "y" : "ies", foreign.front(),
-                                      foreign.size() > 1 ? ", ..." : "")));
-  }
+  if (!foreign.empty()) throw NotAnEarlierOutput(out, "render", OtherEntries(foreign));
+  if (!fs::is_regular_file(dir / "render.json", ec))
+    throw NotAnEarlierOutput(out, "render", "a folder without render.json");
   for (const std::string& name : entries) fs::remove_all(dir / name, ec);
   Logger().info("render: removed the earlier render in {} ({} entries)", dir.string(),
                 entries.size());
 }
+
+}  // namespace
 
 int RunRender(int argc, char** argv) {
   CLI::App app{"Render a synthetic sequence (KITTI folder layout) with exact ground truth"};
@@ -327,8 +325,9 @@ int RunRender(int argc, char** argv) {
                                           "poses.txt",    "times.txt",     "render.json"};
   // The frame folders too: `--textures DIR/image_0 --out DIR` would write frames over textures.
   std::vector<NamedPath> outputs = FilesIn("--out", f.out_dir, files);
-  for (const NamedPath& folder : FilesIn("--out", f.out_dir, {"", "image_0", "mapped", "depth_0"}))
-    outputs.push_back(folder);
+  std::vector<std::string> folders = {""};  // --out itself
+  folders.insert(folders.end(), kFrameFolders.begin(), kFrameFolders.end());
+  for (const NamedPath& folder : FilesIn("--out", f.out_dir, folders)) outputs.push_back(folder);
   CheckOutputsAreNotInputs(
       outputs,
       {{"--trajectory", f.trajectory_path}, {"--raw", f.raw_path}, {"--textures", f.textures_dir}});

@@ -194,9 +194,6 @@ void AddOptimizerJson(const PipelineResult& result, nlohmann::json& summary) {
   summary["inconsistent_loops"] = inconsistent;
 }
 
-// Loop precision / recall against GT revisits derived from the GT poses (the loop-truth
-// distance), over every query frame that has a GT partner: summary keys, pr_curve.csv and
-// gt_loops.txt.
 // The raw scale per frame for the loop NEES: --raw-scale, else raw_scale.txt of a kitti: render
 // folder; none without --gt or without either.
 std::optional<std::vector<double>> RawScaleFor(const RunFlags& flags, const Dataset& dataset,
@@ -208,9 +205,8 @@ std::optional<std::vector<double>> RawScaleFor(const RunFlags& flags, const Data
   }
   std::filesystem::path path = flags.raw_scale_path;
   if (path.empty()) {
-    const std::string& spec = flags.detector.dataset;
-    if (spec.rfind("kitti:", 0) != 0) return std::nullopt;
-    path = std::filesystem::path(spec.substr(6)) / "raw_scale.txt";
+    if (dataset.kind != "kitti") return std::nullopt;
+    path = dataset.root / "raw_scale.txt";
     if (!std::filesystem::is_regular_file(path)) return std::nullopt;
   }
   std::vector<double> scale = ReadRawScale(path);
@@ -259,6 +255,9 @@ nlohmann::json LoopNeesJson(const PipelineResult& result, const Trajectory& gt,
           {"per_loop_columns", {"query", "match", "pose_kind", "dof", "nees"}}};
 }
 
+// Loop precision / recall against GT revisits derived from the GT poses (the loop-truth
+// distance), over every query frame that has a GT partner: summary keys, pr_curve.csv and
+// gt_loops.txt.
 void AddGtLoopEvaluation(const RunFlags& flags, const PipelineOptions& options,
                          const PipelineResult& result, const Trajectory& gt, const LoopTruth& truth,
                          const std::filesystem::path& out, nlohmann::json& summary) {

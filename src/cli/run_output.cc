@@ -204,6 +204,21 @@ Dataset OpenDatasetFromFlags(const DetectorFlags& flags) {
   return OpenDatasetSpec(flags.dataset, options);
 }
 
+std::invalid_argument NotAnEarlierOutput(const std::string& out, const std::string& command,
+                                         const std::string& what) {
+  return std::invalid_argument(fmt::format(
+      "--out {}: expected an empty folder or the output of an earlier `sparseloop {}`, got {}; "
+      "choose another --out",
+      out, command, what));
+}
+
+std::string OtherEntries(std::vector<std::string> entries) {
+  std::sort(entries.begin(), entries.end());
+  return fmt::format("a folder holding {} other entr{} ({}{})", entries.size(),
+                     entries.size() == 1 ? "y" : "ies", entries.empty() ? "" : entries.front(),
+                     entries.size() > 1 ? ", ..." : "");
+}
+
 void PrepareRunFolder(const std::string& out, const std::string& command,
                       const std::string& dataset_spec, const std::vector<std::string>& files,
                       const std::vector<std::string>& inputs) {
@@ -252,14 +267,8 @@ void PrepareRunFolder(const std::string& out, const std::string& command,
   } catch (const std::exception&) {
     same_command = false;
   }
-  if (!same_command && !foreign.empty()) {
-    std::sort(foreign.begin(), foreign.end());
-    throw std::invalid_argument(fmt::format(
-        "--out {}: expected an empty folder or the output of an earlier `sparseloop {}`, got a "
-        "folder holding {} other entr{} ({}{}); choose another --out",
-        out, command, foreign.size(), foreign.size() == 1 ? "y" : "ies", foreign.front(),
-        foreign.size() > 1 ? ", ..." : ""));
-  }
+  if (!same_command && !foreign.empty())
+    throw NotAnEarlierOutput(out, command, OtherEntries(foreign));
   std::vector<std::string> removed;
   std::sort(entries.begin(), entries.end());
   for (const std::string& name : entries) {

@@ -66,6 +66,13 @@ Dataset OpenDatasetFromFlags(const DetectorFlags& flags);
 // there), and otherwise deletes the files of the previous run that `files` names (plus
 // report.html / report_*.png, which describe it) and logs which. std::invalid_argument naming
 // --out (exit 2) when refused.
+// "--out DIR: expected an empty folder or the output of an earlier `sparseloop COMMAND`, got
+// WHAT; choose another --out", the refusal of PrepareRunFolder and of render's own folder rule.
+std::invalid_argument NotAnEarlierOutput(const std::string& out, const std::string& command,
+                                         const std::string& what);
+// "a folder holding N other entr(y|ies) (FIRST[, ...])", the entries sorted.
+std::string OtherEntries(std::vector<std::string> entries);
+
 void PrepareRunFolder(const std::string& out, const std::string& command,
                       const std::string& dataset_spec, const std::vector<std::string>& files,
                       const std::vector<std::string>& inputs);
