@@ -145,22 +145,12 @@ void AddFeatureKeys(KeyList& k) {
         "ORB pyramid scale step (1, 2]");
   k.Add(f + "orb_fast_threshold", SL_FIELD(detector.features.orb_fast_threshold), "grey levels",
         "FAST threshold");
-  k.AddEnum(
-      f + "orb_backend", SL_FIELD(detector.features.orb_backend),
-      {OrbBackend::kOpenCv, OrbBackend::kFast}, [](OrbBackend b) { return ToString(b); },
-      "ORB implementation (same output; fast is about 3x faster)");
   k.Add(f + "grid_cols", SL_FIELD(detector.features.grid_cols), "cells",
         "grid ranking: columns ([1, 1000])");
   k.Add(f + "grid_rows", SL_FIELD(detector.features.grid_rows), "cells",
         "grid ranking: rows ([1, 1000])");
   k.Add(f + "use_gradient_mask", SL_FIELD(detector.features.use_gradient_mask), "",
         "keep features in the high-gradient area only when the keyframe brings no mask");
-  k.Add(f + "gradient.block_size", SL_FIELD(detector.features.gradient.block_size), "px",
-        "gradient mask: side of the adaptive-threshold blocks");
-  k.Add(f + "gradient.threshold_offset", SL_FIELD(detector.features.gradient.threshold_offset),
-        "grey levels", "gradient mask: selected when |grad| > block median + offset");
-  k.Add(f + "gradient.dilate_radius", SL_FIELD(detector.features.gradient.dilate_radius), "px",
-        "gradient mask: dilation of the selection [0, 64]");
 }
 
 // detector.search.*: the search area.
@@ -186,22 +176,9 @@ void AddSearchKeys(KeyList& k) {
         "and the query, or through a recent loop (0: off)");
   k.Add(s + "drift_base_steps", SL_FIELD(detector.search.drift_base_steps), "mean steps",
         "uncertainty area: radius at zero path, in mean raw steps (>= 0)");
-  k.Add(s + "drift_loops", SL_FIELD(detector.search.drift_loops), "loops",
-        "uncertainty area: the last accepted loops it also searches through (>= 0)");
-  k.Add(s + "drift_max_candidates", SL_FIELD(detector.search.drift_max_candidates), "keyframes",
-        "uncertainty area: at most this many, nearest relative to their radius (>= 1)");
   k.Add(PlaneNormalKey());
   k.Add(s + "fallback_count", SL_FIELD(detector.search.fallback_count), "keyframes",
         "paper: keyframes searched when the motion ray hits nothing (>= 1)");
-  k.Add(s + "min_motion", SL_FIELD(detector.search.min_motion), "world units",
-        "in-plane displacements shorter than this are no motion");
-  k.Add(s + "motion_lookback", SL_FIELD(detector.search.motion_lookback), "keyframes",
-        "how far back to look for a motion of at least min_motion");
-  k.Add(s + "refit_growth", SL_FIELD(detector.search.refit_growth), "fraction",
-        "trajectory growth that triggers a plane refit and grid rebuild, (0, 1]");
-  k.Add(s + "cell_size", SL_FIELD(detector.search.cell_size), "world units",
-        "grid cell size (0: 4x the mean in-plane step; >= 0; a given size is kept between 1/16 "
-        "of that and the trajectory's extent)");
 }
 
 // detector.match.*, detector.verify.*, detector.local_map.*: matching and verification.
@@ -217,24 +194,10 @@ void AddMatchingKeys(KeyList& k) {
   const std::string v = "detector.verify.";
   k.Add(v + "threshold_px", SL_FIELD(detector.verify.threshold_px), "px",
         "RANSAC inlier threshold");
-  k.Add(v + "confidence", SL_FIELD(detector.verify.confidence), "probability",
-        "RANSAC confidence (0, 1)");
-  k.Add(v + "max_iterations", SL_FIELD(detector.verify.max_iterations), "iterations",
-        "RANSAC iterations ([1, 100000])");
-  k.Add(v + "local_optimization_rounds", SL_FIELD(detector.verify.local_optimization_rounds),
-        "rounds", "essential matrix: local optimisation rounds after RANSAC [0, 100]");
   k.Add(v + "min_inliers", SL_FIELD(detector.verify.min_inliers), "inliers",
         "a pair with fewer geometric inliers fails");
-  k.Add(v + "min_inlier_ratio", SL_FIELD(detector.verify.min_inlier_ratio), "ratio",
-        "inliers / matches below this fail [0, 1]");
   k.Add(v + "use_depths", SL_FIELD(detector.verify.use_depths), "",
         "PnP / Sim(3) when depths exist");
-  k.Add(v + "scale_from_query_depths_min", SL_FIELD(detector.verify.scale_from_query_depths_min),
-        "inliers",
-        "depths on both sides, PnP fallback: its scale from the query's depths when this many "
-        "inliers have one (0 = off, else >= 3)");
-  k.Add(v + "information_min_sigma_px", SL_FIELD(detector.verify.information_min_sigma_px), "px",
-        "floor of the residual sigma behind a loop's information");
 
   const std::string l = "detector.local_map.";
   k.Add(l + "enabled", SL_FIELD(detector.local_map.enabled), "",
@@ -245,23 +208,10 @@ void AddMatchingKeys(KeyList& k) {
         "keyframes each side each map keyframe is triangulated with (>= 1)");
   k.Add(l + "query_points", SL_FIELD(detector.local_map.query_points), "",
         "when the map falls short: PnP of the match against the query's triangulated points");
-  k.Add(l + "max_reprojection_px", SL_FIELD(detector.local_map.triangulation.max_reprojection_px),
-        "px", "a map point must reproject within this in both views");
-  k.Add(l + "min_parallax_deg", SL_FIELD(detector.local_map.triangulation.min_parallax_deg), "deg",
-        "smallest angle between the two rays of a map point");
   k.Add(l + "min_image_pose_inliers",
         SL_FIELD(detector.local_map.triangulation.min_image_pose_inliers), "inliers",
         "a neighbour's relative pose from the images (essential matrix) when this many matches "
-        "agree, else the raw one (0 = off: raw poses only, else >= 8)");
-  k.Add(l + "image_pose_prior_deg", SL_FIELD(detector.local_map.triangulation.image_pose_prior_deg),
-        "deg",
-        "the raw relative pose's error between neighbours, the prior of that estimate (0, 10]");
-  k.Add(l + "match.max_distance", SL_FIELD(detector.local_map.triangulation.match.max_distance),
-        "bits", "triangulation matching: largest Hamming distance");
-  k.Add(l + "match.ratio", SL_FIELD(detector.local_map.triangulation.match.ratio), "ratio",
-        "triangulation matching: ratio test (0, 1]");
-  k.Add(l + "match.mutual", SL_FIELD(detector.local_map.triangulation.match.mutual), "",
-        "triangulation matching: mutual best only");
+        "agree, else the raw one (0 = off: the vSLAM's raw poses only, else >= 8)");
 }
 
 // detector.*: what is stored, matched, accepted and gated.
@@ -269,56 +219,26 @@ void AddDetectorPolicyKeys(KeyList& k) {
   const std::string d = "detector.";
   k.Add(d + "asymmetric_matching", SL_FIELD(detector.asymmetric_matching), "",
         "match the stored K features against the query's whole extraction (not K x K)");
-  k.Add(d + "query_max_features", SL_FIELD(detector.query_max_features), "features",
-        "asymmetric matching: features of the query matched, in [K, orb_candidates] (>= 5)");
   k.Add(d + "repeatability_window", SL_FIELD(detector.repeatability_window), "keyframes",
         "store first the features re-found in this many previous keyframes [0, 16] (0: off)");
-  k.Add(d + "repeatability_pool", SL_FIELD(detector.repeatability_pool), "features",
-        "repeatability ranking: best-ranked features that compete for the K (>= 5)");
   k.Add(d + "weak_pairs", SL_FIELD(detector.weak_pairs), "",
         "accept pairs below the inlier floor when the keyframe before verified the same place");
-  k.Add(d + "weak_min_inliers", SL_FIELD(detector.weak_min_inliers), "inliers",
-        "weak pairs: fewest inliers (>= 5)");
-  k.Add(d + "agreement_window", SL_FIELD(detector.agreement_window), "keyframes",
-        "weak pairs: the agreeing pair's query is at most this many keyframes back (>= 1)");
   k.Add(d + "appearance_fallback", SL_FIELD(detector.appearance_fallback), "",
         "no loop in the search area: rank every stored keyframe by descriptor matches and "
         "verify the best");
   k.Add(d + "fallback_candidates", SL_FIELD(detector.fallback_candidates), "keyframes",
         "appearance fallback: keyframes matched in full after the cheap pre-ranking (0: all)");
-  k.Add(d + "fallback_coarse_features", SL_FIELD(detector.fallback_coarse_features), "features",
-        "appearance fallback pre-ranking, over 10 x fallback_candidates keyframes: a first stage "
-        "on this many stored descriptors each (0: off)");
-  k.Add(d + "fallback_coarse_probe", SL_FIELD(detector.fallback_coarse_probe), "features",
-        "appearance fallback pre-ranking's coarse stage: the query's first this many probe "
-        "descriptors (0: all)");
-  k.Add(d + "fallback_fine_features", SL_FIELD(detector.fallback_fine_features), "features",
-        "appearance fallback pre-ranking: stored descriptors per keyframe and query "
-        "descriptors in the probe, the first this many (0: all K)");
   k.Add(d + "pose_jump_factor", SL_FIELD(detector.pose_jump_factor), "",
         "a raw step this x the usual one starts a new pose segment (0: off)");
-  k.Add(d + "pose_jump_max_deg", SL_FIELD(detector.pose_jump_max_deg), "deg",
-        "a raw rotation step above this starts a new pose segment (0: off)");
-  k.Add(d + "pose_jump_max_scale", SL_FIELD(detector.pose_jump_max_scale), "",
-        "a Sim(3) scale step beyond this ratio starts a new pose segment (>= 1, 0: off)");
   k.Add(d + "check_every", SL_FIELD(detector.check_every), "keyframes",
         "run the loop check every N keyframes (>= 1)");
   k.Add(d + "min_matches", SL_FIELD(detector.min_matches), "matches",
         "candidates with fewer descriptor matches are not verified");
-  k.Add(d + "small_k_fraction", SL_FIELD(detector.small_k_fraction), "fraction",
-        "below K = 30 the match and inlier floors become ceil(fraction x K) (0, 1]");
-  k.Add(d + "small_k_floor", SL_FIELD(detector.small_k_floor), "matches",
-        "lowest small-K floor (>= 5)");
   k.Add(d + "max_verify", SL_FIELD(detector.max_verify), "candidates",
         "best-ranked candidates verified geometrically (>= 1)");
   k.Add(d + "best_of_verified", SL_FIELD(detector.best_of_verified), "",
         "no pose: verify every candidate to verify and keep the loop with the most inliers "
         "(false: the first that passes)");
-  k.Add(d + "verify_close_fraction", SL_FIELD(detector.verify_close_fraction), "fraction",
-        "also verify the next candidates with at least this fraction of the max_verify-th's "
-        "matches (0: off)");
-  k.Add(d + "max_verify_close", SL_FIELD(detector.max_verify_close), "candidates",
-        "close scores: candidates verified in all, at most (>= 1)");
   k.Add(d + "min_inlier_fraction_of_k", SL_FIELD(detector.min_inlier_fraction_of_k), "fraction",
         "inlier floor grows as ceil(fraction x K) [0, 1]");
   k.Add(d + "min_path_ratio", SL_FIELD(detector.min_path_ratio), "ratio",
@@ -326,38 +246,13 @@ void AddDetectorPolicyKeys(KeyList& k) {
   k.Add(d + "overlap_gap", SL_FIELD(detector.overlap_gap), "keyframes",
         "no pose: keyframes still sharing the scene with the query are excluded until this "
         "many in a row do not (0: off)");
-  k.Add(d + "overlap_max_walk", SL_FIELD(detector.overlap_max_walk), "keyframes",
-        "no pose: at most this many keyframes matched by the overlap walk (>= 0)");
-  k.Add(d + "overlap_match_factor", SL_FIELD(detector.overlap_match_factor), "factor",
-        "no pose: overlap needs this x the match floor (>= 0)");
-  k.Add(d + "overlap_relative", SL_FIELD(detector.overlap_relative), "fraction",
-        "no pose: overlap needs this fraction of the first walked keyframe's matches [0, 1]");
-  k.Add(d + "overlap_features", SL_FIELD(detector.overlap_features), "features",
-        "no pose, query extracted with more than K: the walk matches this many of the recent "
-        "keyframes' extractions, kept in a buffer (0: stored records only; >= 0)");
-  k.Add(d + "overlap_window", SL_FIELD(detector.overlap_window), "keyframes",
-        "no pose: recent keyframes whose extraction the walk's buffer keeps (>= 1)");
   k.Add(d + "continuity_check", SL_FIELD(detector.continuity_check), "",
         "no pose: reject a loop when a keyframe between it and the query verifies as well");
   k.Add(d + "max_loop_distance_steps", SL_FIELD(detector.max_loop_distance_steps), "steps",
         "reject a metric loop whose query is farther than this many raw steps (mean around the "
         "match) from it (0: off)");
-  k.Add(d + "loop_distance_window", SL_FIELD(detector.loop_distance_window), "keyframes",
-        "keyframes each side of the match whose raw steps measure the step for "
-        "max_loop_distance_steps (0: the whole path's mean step)");
   k.Add(d + "check_consistency", SL_FIELD(detector.check_consistency), "",
         "reject loops whose rotation disagrees with the pose prior");
-  k.Add(d + "planar_alternatives", SL_FIELD(detector.planar_alternatives), "",
-        "try a homography's other poses when the two-view pose fails the prior");
-  k.Add(d + "planar_alternative_tolerance", SL_FIELD(detector.planar_alternative_tolerance),
-        "fraction", "an alternative must agree within this fraction of the tolerance (0, 1]");
-  k.Add(d + "consistency_base_deg", SL_FIELD(detector.consistency_base_deg), "deg",
-        "rotation gate: base tolerance");
-  k.Add(d + "consistency_per_keyframe_deg", SL_FIELD(detector.consistency_per_keyframe_deg),
-        "deg/keyframe", "rotation gate: growth per keyframe of odometry (PnP / Sim(3) pose)");
-  k.Add(d + "two_view_consistency_per_keyframe_deg",
-        SL_FIELD(detector.two_view_consistency_per_keyframe_deg), "deg/keyframe",
-        "rotation gate: growth per keyframe of odometry (two-view pose)");
   k.Add(d + "consistency_max_deg", SL_FIELD(detector.consistency_max_deg), "deg",
         "rotation gate: largest tolerance");
   k.AddEnum(
@@ -374,19 +269,8 @@ void AddDetectorPolicyKeys(KeyList& k) {
 // detector.ann.* (the approximate index) and detector.seed.
 void AddAnnKeys(KeyList& k) {
   const std::string a = "detector.ann.";
-  k.Add(a + "hnsw_m", SL_FIELD(detector.ann.hnsw_m), "links", "HNSW links per node ([2, 256])");
-  k.Add(a + "ef_construction", SL_FIELD(detector.ann.ef_construction), "candidates",
-        "HNSW candidate list while inserting ([1, 4096])");
-  k.Add(a + "ef_search", SL_FIELD(detector.ann.ef_search), "candidates",
-        "HNSW candidate list while searching (>= neighbors, at most 4096)");
-  k.Add(a + "neighbors", SL_FIELD(detector.ann.neighbors), "descriptors",
-        "nearest stored descriptors per query descriptor ([1, 256])");
-  k.Add(a + "max_distance", SL_FIELD(detector.ann.max_distance), "bits",
-        "a farther neighbour votes for nothing [0, 256]");
   k.Add(a + "max_candidates", SL_FIELD(detector.ann.max_candidates), "keyframes",
         "top-voted keyframes matched and verified (>= 1)");
-  k.Add(a + "num_threads", SL_FIELD(detector.ann.num_threads), "threads",
-        "OpenMP threads of the index (1: deterministic inserts; [1, 256])");
   k.Add("detector.seed", SL_FIELD(detector.seed), "", "RNG seed of the verification");
 }
 
@@ -403,14 +287,6 @@ void AddOptimizerKeys(KeyList& k) {
   const std::string p = "optimizer.";
   k.Add(p + "max_iterations", SL_FIELD(optimizer.max_iterations), "iterations",
         "Levenberg-Marquardt iterations (>= 1)");
-  k.Add(p + "function_tolerance", SL_FIELD(optimizer.function_tolerance), "relative",
-        "relative cost change for convergence");
-  k.Add(p + "gradient_tolerance", SL_FIELD(optimizer.gradient_tolerance), "",
-        "Ceres gradient tolerance");
-  k.Add(p + "parameter_tolerance", SL_FIELD(optimizer.parameter_tolerance), "",
-        "Ceres parameter tolerance");
-  k.Add(p + "initial_trust_region_radius", SL_FIELD(optimizer.initial_trust_region_radius), "",
-        "first trust region (1 / damping)");
   const std::vector<RobustLoss> losses = {RobustLoss::kTrivial, RobustLoss::kHuber,
                                           RobustLoss::kCauchy};
   k.AddEnum(
@@ -435,27 +311,13 @@ void AddOptimizerKeys(KeyList& k) {
         "PCM: scale sigma per step (Sim(3))");
   k.Add(p + "pcm_free_scale_prior", SL_FIELD(optimizer.pcm.free_scale_prior), "",
         "PCM: test loops with a free scale (se3_metric) with the scale drift prior, not at 1");
-  k.Add(p + "pcm_scale_profile", SL_FIELD(optimizer.pcm.scale_profile), "",
-        "PCM: test cycles on the raw poses rescaled by the scale drift the loops measure (Sim(3))");
   k.Add(p + "pcm_odometry_check", SL_FIELD(optimizer.pcm.odometry_check), "",
         "PCM: also test each loop alone against its own odometry chain");
-  k.Add(p + "pcm_odometry_check_confidence", SL_FIELD(optimizer.pcm.odometry_check_confidence),
-        "probability", "PCM: chi-square quantile of the single-loop odometry test");
-  k.Add(p + "pcm_max_exact_clique", SL_FIELD(optimizer.pcm.max_exact_clique), "loops",
-        "PCM: above this many loops a greedy clique is used");
   k.Add(p + "num_threads", SL_FIELD(optimizer.num_threads), "threads", "Ceres threads ([1, 256])");
-  k.Add(p + "reduce_chains", SL_FIELD(optimizer.reduce_chains), "",
-        "Sim(3): solve without odometry-chain vertices, recover them after");
-  k.Add(p + "max_chain_length", SL_FIELD(optimizer.max_chain_length), "edges",
-        "edges per composed chain (>= 1)");
   k.Add(p + "log_progress", SL_FIELD(optimizer.log_progress), "",
         "log every iteration (through the logger, never stdout)");
   k.Add(p + "loop_weight_rounds", SL_FIELD(optimizer.loop_weight_rounds), "solves",
         "re-solves with heavier kept loops while the median one is inconsistent (>= 0; 0: off)");
-  k.Add(p + "max_loop_weight_scale", SL_FIELD(optimizer.max_loop_weight_scale), "",
-        "largest factor on the kept loops' information (>= 1)");
-  k.Add(p + "loop_weight_quantile", SL_FIELD(optimizer.loop_weight_quantile), "",
-        "which kept loop's chi2 drives the weight rounds: 0.5 the median, 1 the worst (0, 1]");
 }
 
 void AddGraphKeys(KeyList& k) {
@@ -469,10 +331,6 @@ void AddGraphKeys(KeyList& k) {
   k.Add(o + "scale_sigma", SL_FIELD(odometry.scale_sigma), "log-scale",
         "odometry scale sigma per step (Sim(3))");
   const std::string d = "direction_loop.";
-  k.Add(d + "baseline_in_steps", SL_FIELD(direction_loop.baseline_in_steps), "steps",
-        "loop with a direction only: assumed |t| / local step length");
-  k.Add(d + "magnitude_sigma_fraction", SL_FIELD(direction_loop.magnitude_sigma_fraction),
-        "fraction", "loop with a direction only: sigma along the direction / magnitude");
   k.Add(d + "direction_sigma_rad", SL_FIELD(direction_loop.direction_sigma_rad), "rad",
         "loop with a direction only: angular sigma of the direction");
   k.Add(d + "rotation_sigma_rad", SL_FIELD(direction_loop.rotation_sigma_rad), "rad",
@@ -494,12 +352,6 @@ void AddGraphKeys(KeyList& k) {
         "PnP / Sim(3) loops use their own measured covariance");
   k.Add("loop_covariance_inflation", SL_FIELD(loop_covariance_inflation), "",
         "multiplier of a loop's measured covariance (>= 1)");
-  k.Add("loop_min_translation_sigma_steps", SL_FIELD(loop_min_translation_sigma_steps), "steps",
-        "floor of a measured loop's translation sigma");
-  k.Add("loop_min_rotation_sigma_rad", SL_FIELD(loop_min_rotation_sigma_rad), "rad",
-        "floor of a measured loop's rotation sigma");
-  k.Add("loop_min_scale_sigma", SL_FIELD(loop_min_scale_sigma), "log-scale",
-        "floor of a measured loop's scale sigma");
   k.Add("use_mapped_pixels", SL_FIELD(use_mapped_pixels), "",
         "read DIR/mapped/NNNNNN.txt (u v depth) when the dataset has it");
   k.Add("raw_association_max_dt", SL_FIELD(raw_association_max_dt), "s",

@@ -230,26 +230,18 @@ TEST(CliMessages, LinkLoopsFilesAndDevicesSayWhatThePathIs) {
                     {"/dev/null: expected a map database file", "a device"});
 }
 
-// Options whose value made the cost explode or let a library print: the grid cell of the search
-// area (1 mm on a 10 m scene ran past 30 s per keyframe) is clamped to the trajectory's extent,
-// Ceres threads are bounded (100000 let glog print "Logging before InitGoogleLogging()").
+// Options whose value let a library print: Ceres threads are bounded (100000 let glog print
+// "Logging before InitGoogleLogging()"). The search grid's cell, whose 1 mm on a 10 m scene ran
+// past 30 s per keyframe, is no configuration key; its clamp is checked against brute force in
+// SearchAreaOracle.IdenticalToBruteForceOnRandomTrajectories (a cell of 1e-300 among its trials).
 TEST(CliMessages, OptionsThatWouldHangOrLetALibraryPrintAreBounded) {
   const fs::path& seq = RenderedLoopSequence();
   ASSERT_FALSE(seq.empty());
   const auto dir = TempDir();
-  ExpectExit2Naming(RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
-                            (seq / "poses_raw.txt").string(), "--set",
-                            "optimizer.num_threads=100000", "--out", (dir / "o1").string()}),
-                    {"--set optimizer.num_threads=100000", "[1, 256]"});
-  const auto start = std::chrono::steady_clock::now();
-  const CliResult r =
-      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--poses",
-              (seq / "poses_raw.txt").string(), "-K", "15", "--set",
-              "detector.search.cell_size=1e-300", "--out", (dir / "o2").string(), "--quiet"});
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_LT(seconds, 60.0);
+  const CliResult r = RunCli({"run", "--dataset", "kitti:" + seq.string(), "--poses",
+                              (seq / "poses_raw.txt").string(), "--set",
+                              "optimizer.num_threads=100000", "--out", (dir / "o1").string()});
+  ExpectExit2Naming(r, {"--set optimizer.num_threads=100000", "[1, 256]"});
   EXPECT_EQ(r.err.find("InitGoogleLogging"), std::string::npos) << r.err;
 }
 

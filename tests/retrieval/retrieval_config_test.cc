@@ -9,20 +9,26 @@
 namespace sparseloop {
 namespace {
 
+std::string ErrorOf(const std::string& text) {
+  PipelineOptions o;
+  try {
+    ApplyConfig(nlohmann::json::parse(text), "cfg.json", &o);
+  } catch (const FileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 TEST(RetrievalConfig, RoundTripOfTheNewKeys) {
   PipelineOptions o;
-  ApplyConfig(nlohmann::json::parse(R"({"detector": {"retrieval": "ann",
-      "ann": {"hnsw_m": 8, "ef_construction": 20, "ef_search": 48, "neighbors": 3,
-              "max_distance": 50, "max_candidates": 7, "num_threads": 2}}})"),
-              "cfg.json", &o);
+  ApplyConfig(
+      nlohmann::json::parse(R"({"detector": {"retrieval": "ann", "ann": {"max_candidates": 7}}})"),
+      "cfg.json", &o);
   EXPECT_EQ(o.detector.retrieval, CandidateRetrieval::kAnn);
-  EXPECT_EQ(o.detector.ann.hnsw_m, 8);
-  EXPECT_EQ(o.detector.ann.ef_construction, 20);
-  EXPECT_EQ(o.detector.ann.ef_search, 48);
-  EXPECT_EQ(o.detector.ann.neighbors, 3);
-  EXPECT_EQ(o.detector.ann.max_distance, 50);
   EXPECT_EQ(o.detector.ann.max_candidates, 7);
-  EXPECT_EQ(o.detector.ann.num_threads, 2);
+  // The index's own parameters are the library's (AnnOptions), not configuration keys.
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"hnsw_m": 8}}})").find("detector.ann.hnsw_m"),
+            std::string::npos);
   // Written back and read again: the same options.
   const nlohmann::json j = ConfigToJson(o);
   EXPECT_EQ(j["detector"]["retrieval"], "ann");
@@ -35,24 +41,15 @@ TEST(RetrievalConfig, RoundTripOfTheNewKeys) {
   EXPECT_EQ(ConfigToJson(PipelineOptions{})["detector"]["retrieval"], "brute_force");
 }
 
-std::string ErrorOf(const std::string& text) {
-  PipelineOptions o;
-  try {
-    ApplyConfig(nlohmann::json::parse(text), "cfg.json", &o);
-  } catch (const FileError& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(RetrievalConfig, RejectsUnknownAndInvalid) {
   EXPECT_NE(ErrorOf(R"({"detector": {"retrieval": "hnsw"}})").find("detector.retrieval"),
             std::string::npos);
   EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"efsearch": 3}}})").find("detector.ann.efsearch"),
             std::string::npos);
-  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"neighbors": 2.5}}})").find("detector.ann.neighbors"),
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"max_candidates": 2.5}}})")
+                .find("detector.ann.max_candidates"),
             std::string::npos);
-  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"neighbors": 40, "ef_search": 32}}})"), "");
+  EXPECT_NE(ErrorOf(R"({"detector": {"ann": {"max_candidates": 0}}})"), "");
 }
 
 // bench/configs/full_global.json, full_global_24.json and full_ann.json: parse strictly and mean
