@@ -104,7 +104,7 @@ class ProgressLine {
 // query,match,score,inliers,status,pose_kind,planar_alternative,accepted,correct,qx,qy,qz,qw,tx,
 // ty,tz,scale,match_session (planar_alternative 0/1: LoopResult::planar_alternative; accepted /
 // correct are empty when unknown, including rows past the end of
-// `accepted` / `truth`; match_session 0 = this run, > 0 = an earlier map session). Without
+// `accepted` / `truth`; match_session: this run's is 0, an earlier map session's > 0). Without
 // `graph_columns` (detect: no pose graph) the accepted and correct columns are left out.
 // Last two columns query_image, match_image: the frames' image file names (no folder) from
 // `images` (frame index -> name; empty when unknown, e.g. a match in an earlier map session).

@@ -1,6 +1,6 @@
 // LoopDetector: candidates matched, ranked and verified; the gates a verified pair passes
 // (pose-prior rotation, weak pairs, continuity) and the state they read; ANN voting.
-#include "sparseloop/loop/loop_detector.h"
+#include "loop_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,9 +15,9 @@
 
 namespace sparseloop {
 
-bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query_index,
-                                       size_t match_index, int inliers,
-                                       const VerifyOptions& verify) const {
+bool LoopDetector::Impl::ContinuesRecentView(const KeyframeRecord& query, size_t query_index,
+                                             size_t match_index, int inliers,
+                                             const VerifyOptions& verify) const {
   const size_t span = query_index - match_index;
   for (const size_t k : {match_index + span / 2, match_index + 3 * span / 4}) {
     if (k <= match_index || k >= query_index) continue;
@@ -29,7 +29,7 @@ bool LoopDetector::ContinuesRecentView(const KeyframeRecord& query, size_t query
   return false;
 }
 
-size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
+size_t LoopDetector::Impl::OverlapStart(const KeyframeRecord& query, size_t exclude_end) const {
   // Keyframes still in overlap_buffer_ are matched with the query's first overlap_features, at
   // the floors of a record of that size; older ones (or without the buffer) with their stored
   // records, at the record's floors.
@@ -77,7 +77,7 @@ size_t LoopDetector::OverlapStart(const KeyframeRecord& query, size_t exclude_en
   return start;
 }
 
-bool LoopDetector::Agrees(size_t query_index, size_t match_index) const {
+bool LoopDetector::Impl::Agrees(size_t query_index, size_t match_index) const {
   if (!last_support_ || last_support_->first >= query_index) return false;
   const size_t dq = query_index - last_support_->first;
   const size_t dm = match_index > last_support_->second ? match_index - last_support_->second
@@ -86,8 +86,8 @@ bool LoopDetector::Agrees(size_t query_index, size_t match_index) const {
   return dq <= window && dm <= window + dq;
 }
 
-LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
-                                                           size_t match_index) const {
+LoopDetector::Impl::GraphPrior LoopDetector::Impl::PriorAlongLoopGraph(size_t query_index,
+                                                                       size_t match_index) const {
   auto dist = [](size_t x, size_t y) { return x > y ? x - y : y - x; };
   auto rotation = [&](size_t i) { return records_[i].world_from_cam().rotation; };
   // a_from_b of the raw rotations.
@@ -116,8 +116,9 @@ LoopDetector::GraphPrior LoopDetector::PriorAlongLoopGraph(size_t query_index,
   return best;
 }
 
-std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, size_t query_index,
-                                                   const std::vector<int64_t>& allowed) {
+std::vector<int64_t> LoopDetector::Impl::RetrieveByVotes(const KeyframeRecord& query,
+                                                         size_t query_index,
+                                                         const std::vector<int64_t>& allowed) {
   // Keyframes the search area may return (index < query index - exclude_recent) enter the index;
   // the recent ones stay out, else they would absorb every query descriptor's nearest neighbours.
   const size_t exclude = static_cast<size_t>(std::max(0, options_.search.exclude_recent));
@@ -137,8 +138,8 @@ std::vector<int64_t> LoopDetector::RetrieveByVotes(const KeyframeRecord& query, 
   return out;
 }
 
-LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
-                                      const std::vector<int64_t>& candidate_ids) {
+LoopResult LoopDetector::Impl::MatchAgainst(const KeyframeRecord& query,
+                                            const std::vector<int64_t>& candidate_ids) {
   Timer total;
   ClearCallCaches();
   LoopResult result;
@@ -148,11 +149,12 @@ LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
   return result;
 }
 
-LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const KeyframeRecord& match,
-                                      size_t query_index, size_t match_index,
-                                      const std::vector<DescriptorMatch>& matches,
-                                      const VerificationResult& v, bool from_local_map,
-                                      LoopResult* trial) const {
+LoopStatus LoopDetector::Impl::RotationGate(const KeyframeRecord& query,
+                                            const KeyframeRecord& match, size_t query_index,
+                                            size_t match_index,
+                                            const std::vector<DescriptorMatch>& matches,
+                                            const VerificationResult& v, bool from_local_map,
+                                            LoopResult* trial) const {
   // No prior across a raw pose reset either (MatchAgainst may be given any stored keyframe).
   if (!query.has_pose || !match.has_pose || v.pose_kind == RelativePoseKind::kNone ||
       !SameSegment(query_index, match_index))
@@ -190,9 +192,9 @@ LoopStatus LoopDetector::RotationGate(const KeyframeRecord& query, const Keyfram
   return LoopStatus::kRejectedByConsistency;
 }
 
-bool LoopDetector::TooFarForARevisit(const KeyframeRecord& query, const KeyframeRecord& match,
-                                     size_t query_index, size_t match_index,
-                                     const LoopResult& trial) const {
+bool LoopDetector::Impl::TooFarForARevisit(const KeyframeRecord& query, const KeyframeRecord& match,
+                                           size_t query_index, size_t match_index,
+                                           const LoopResult& trial) const {
   // Only a pose from 3D points has a metric translation (raw units of the match's segment).
   const bool metric =
       trial.pose_kind == RelativePoseKind::kSE3Metric || trial.pose_kind == RelativePoseKind::kSim3;
@@ -203,7 +205,7 @@ bool LoopDetector::TooFarForARevisit(const KeyframeRecord& query, const Keyframe
          options_.max_loop_distance_steps * LocalStep(match_index, query_index);
 }
 
-double LoopDetector::LocalStep(size_t match_index, size_t query_index) const {
+double LoopDetector::Impl::LocalStep(size_t match_index, size_t query_index) const {
   // The translation is in the match's raw units (its depths or its neighbours' triangulation),
   // and a monocular trajectory's scale drifts: street00 at --drift 4 moves 1.05 raw units per
   // keyframe around keyframe 207 and 4.7 on average over the run. So the step is measured around
@@ -229,11 +231,11 @@ double LoopDetector::LocalStep(size_t match_index, size_t query_index) const {
   return path_length_[query_index] / static_cast<double>(query_index);
 }
 
-LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_index,
-                                      size_t match_index,
-                                      const std::vector<DescriptorMatch>& matches,
-                                      const VerifyOptions& verify, bool weak_enabled,
-                                      std::optional<size_t>* support, LoopResult* trial) {
+LoopStatus LoopDetector::Impl::TryCandidate(const KeyframeRecord& query, size_t query_index,
+                                            size_t match_index,
+                                            const std::vector<DescriptorMatch>& matches,
+                                            const VerifyOptions& verify, bool weak_enabled,
+                                            std::optional<size_t>* support, LoopResult* trial) {
   const KeyframeRecord& match = Stored(match_index);
   VerificationResult v = VerifyPair(query, match, matches, verify);
   int map_points = 0, map_inliers = 0;
@@ -284,7 +286,7 @@ LoopStatus LoopDetector::TryCandidate(const KeyframeRecord& query, size_t query_
 
 namespace {
 // How many of the ranked candidates to verify: max_verify, then the close scores.
-int VerifyCount(const LoopDetector::Options& o,
+int VerifyCount(const LoopDetectorOptions& o,
                 const std::vector<loop_internal::RankedCandidate>& ranked) {
   const int available = static_cast<int>(ranked.size());
   int n = std::min(o.max_verify, available);
@@ -302,8 +304,9 @@ int VerifyCount(const LoopDetector::Options& o,
 }
 }  // namespace
 
-void LoopDetector::SearchAndVerify(const KeyframeRecord& query, std::vector<int64_t> candidates,
-                                   LoopResult* result, bool weak_pairs) {
+void LoopDetector::Impl::SearchAndVerify(const KeyframeRecord& query,
+                                         std::vector<int64_t> candidates, LoopResult* result,
+                                         bool weak_pairs) {
   result->candidates = static_cast<int>(candidates.size());
   if (candidates.empty()) {
     result->status = LoopStatus::kNoCandidates;

@@ -1,6 +1,6 @@
 // LoopDetector: verification against a local map triangulated around the match (PnP / Sim(3)),
 // and the relative scale of a PnP loop from the query's depths.
-#include "sparseloop/loop/loop_detector.h"
+#include "loop_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,8 +23,8 @@ constexpr int kMinScalePairs = 8;
 
 }  // namespace
 
-const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRecord& query,
-                                                                size_t query_index) const {
+const KeyframeRecord& LoopDetector::Impl::QueryWithTriangulatedDepths(const KeyframeRecord& query,
+                                                                      size_t query_index) const {
   if (query_points_ && query_points_->id == query.id && query_points_->size == query.size())
     return query_points_->record;
   query_points_ = QueryPoints{query.id, query.size(), query};
@@ -52,10 +52,9 @@ const KeyframeRecord& LoopDetector::QueryWithTriangulatedDepths(const KeyframeRe
   return q;
 }
 
-VerificationResult LoopDetector::VerifyWithQueryPoints(const KeyframeRecord& query,
-                                                       size_t match_index,
-                                                       const std::vector<DescriptorMatch>& matches,
-                                                       PoseSources* sources) const {
+VerificationResult LoopDetector::Impl::VerifyWithQueryPoints(
+    const KeyframeRecord& query, size_t match_index, const std::vector<DescriptorMatch>& matches,
+    PoseSources* sources) const {
   VerificationResult none;
   none.method = VerificationMethod::kPnP;
   const KeyframeRecord& q = QueryWithTriangulatedDepths(query, index_of_.at(query.id));
@@ -72,9 +71,9 @@ VerificationResult LoopDetector::VerifyWithQueryPoints(const KeyframeRecord& que
   return v.success && v.pose_kind == RelativePoseKind::kSE3Metric ? v : none;
 }
 
-VerificationResult LoopDetector::VerifyAgainstLocalMap(const KeyframeRecord& query,
-                                                       size_t match_index, int* map_points,
-                                                       PoseSources* sources) const {
+VerificationResult LoopDetector::Impl::VerifyAgainstLocalMap(const KeyframeRecord& query,
+                                                             size_t match_index, int* map_points,
+                                                             PoseSources* sources) const {
   const Options::LocalMapOptions& lm = options_.local_map;
   const KeyframeRecord& match = Stored(match_index);
   // Only keyframes well before the query: the map must not contain the query's own stretch.

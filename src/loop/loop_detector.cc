@@ -1,7 +1,7 @@
 // LoopDetector: options, the store, and Process with its steps (validate, extract, store, search
 // area, the fallbacks); the candidates are verified in candidate_verification.cc, the local map in
 // local_map.cc, earlier sessions and relocalisation in prior_sessions.cc.
-#include "sparseloop/loop/loop_detector.h"
+#include "loop_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -75,7 +75,7 @@ CandidateRetrieval ParseCandidateRetrieval(const std::string& name) {
   return CandidateRetrieval::kBruteForce;
 }
 
-void LoopDetector::Options::Check() const {
+void LoopDetectorOptions::Check() const {
   features.Check();
   search.Check();
   match.Check();
@@ -139,7 +139,7 @@ void LoopDetector::Options::Check() const {
   local_map.Check();
 }
 
-void LoopDetector::Options::LocalMapOptions::Check() const {
+void LoopDetectorOptions::LocalMapOptions::Check() const {
   SL_CHECK_MSG(window >= 0, "local_map.window must be >= 0 keyframes, got {}", window);
   SL_CHECK_MSG(neighbours >= 1, "local_map.neighbours must be >= 1 keyframe, got {}", neighbours);
   triangulation.Check();
@@ -169,22 +169,22 @@ KeyframeRecord StoredSubset(const KeyframeRecord& full, const std::vector<int>& 
   return rec;
 }
 
-int SmallKFloor(const LoopDetector::Options& o, int n, int k) {
+int SmallKFloor(const LoopDetectorOptions& o, int n, int k) {
   return std::min(n,
                   std::max(o.small_k_floor, static_cast<int>(std::ceil(o.small_k_fraction * k))));
 }
 }  // namespace
 
-int LoopDetector::Options::EffectiveMinInliers(int k) const {
+int LoopDetectorOptions::EffectiveMinInliers(int k) const {
   return std::max(SmallKFloor(*this, verify.min_inliers, k),
                   static_cast<int>(std::ceil(min_inlier_fraction_of_k * k)));
 }
 
-int LoopDetector::Options::EffectiveMinMatches(int k) const {
+int LoopDetectorOptions::EffectiveMinMatches(int k) const {
   return SmallKFloor(*this, min_matches, k);
 }
 
-LoopDetector::LoopDetector(Options options)
+LoopDetector::Impl::Impl(Options options)
     : options_(std::move(options)), search_([&] {
         options_.Check();
         return options_.search;
@@ -195,34 +195,65 @@ LoopDetector::LoopDetector(Options options)
   if (options_.retrieval == CandidateRetrieval::kAnn) ann_.emplace(options_.ann);
 }
 
+// The public face: each operation is the Impl's.
+LoopDetector::LoopDetector(Options options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+LoopDetector::~LoopDetector() = default;
+LoopDetector::LoopDetector(LoopDetector&&) noexcept = default;
+LoopDetector& LoopDetector::operator=(LoopDetector&&) noexcept = default;
+LoopResult LoopDetector::Process(const KeyframeInput& input) { return impl_->Process(input); }
+const LoopDetector::Options& LoopDetector::options() const { return impl_->options_; }
+size_t LoopDetector::num_keyframes() const { return impl_->records_.size(); }
+KeyframeRecord LoopDetector::record(int64_t id) const { return impl_->record(id); }
 const PackedKeyframe& LoopDetector::packed_record(int64_t id) const {
+  return impl_->packed_record(id);
+}
+size_t LoopDetector::StoredBytes() const { return impl_->StoredBytes(); }
+size_t LoopDetector::RetrievalIndexBytes() const { return impl_->ann_ ? impl_->ann_->Bytes() : 0; }
+size_t LoopDetector::RecentBufferBytes() const { return impl_->RecentBufferBytes(); }
+LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
+                                      const std::vector<int64_t>& candidate_ids) {
+  return impl_->MatchAgainst(query, candidate_ids);
+}
+void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+  impl_->AddPriorKeyframes(session, std::move(records));
+}
+size_t LoopDetector::num_prior_keyframes() const { return impl_->prior_records_.size(); }
+size_t LoopDetector::num_anchor_loops() const { return impl_->accepted_loops_.size(); }
+KeyframeRecord LoopDetector::prior_record(int64_t session, int64_t id) const {
+  return impl_->prior_record(session, id);
+}
+LoopResult LoopDetector::Relocalize(const KeyframeInput& input) { return impl_->Relocalize(input); }
+
+const PackedKeyframe& LoopDetector::Impl::packed_record(int64_t id) const {
   auto it = index_of_.find(id);
   SL_CHECK_MSG(it != index_of_.end(), "unknown keyframe id {}", id);
   return records_[it->second];
 }
 
-KeyframeRecord LoopDetector::record(int64_t id) const { return UnpackRecord(packed_record(id)); }
+KeyframeRecord LoopDetector::Impl::record(int64_t id) const {
+  return UnpackRecord(packed_record(id));
+}
 
-const KeyframeRecord& LoopDetector::Unpacked(const PackedKeyframe& packed) const {
+const KeyframeRecord& LoopDetector::Impl::Unpacked(const PackedKeyframe& packed) const {
   auto it = unpacked_.find(&packed);
   if (it == unpacked_.end()) it = unpacked_.emplace(&packed, UnpackRecord(packed)).first;
   return it->second;
 }
 
-size_t LoopDetector::StoredBytes() const {
+size_t LoopDetector::Impl::StoredBytes() const {
   size_t total = 0;
   for (const auto& r : records_) total += r.Bytes();
   return total;
 }
 
-size_t LoopDetector::RecentBufferBytes() const {
+size_t LoopDetector::Impl::RecentBufferBytes() const {
   size_t total = 0;
   for (const auto& d : recent_) total += d.size() * sizeof(Descriptor);
   for (const auto& [index, d] : overlap_buffer_) total += d.size() * sizeof(Descriptor);
   return total;
 }
 
-bool LoopDetector::ValidateInput(const KeyframeInput& input) const {
+bool LoopDetector::Impl::ValidateInput(const KeyframeInput& input) const {
   SL_CHECK_MSG(!index_of_.count(input.id), "keyframe id {} was already processed", input.id);
   SL_CHECK_MSG(std::isfinite(input.timestamp), "keyframe {}: timestamp is not finite", input.id);
   SL_CHECK_MSG(records_.empty() || input.timestamp > records_.back().timestamp(),
@@ -253,7 +284,7 @@ bool LoopDetector::ValidateInput(const KeyframeInput& input) const {
   return relocalize;
 }
 
-size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
+size_t LoopDetector::Impl::Store(PackedKeyframe rec, bool relocalize) {
   ClearCallCaches();
   const size_t index = records_.size();
   // A keyframe without a pose (global search only) stays where the last posed one was: the
@@ -271,7 +302,7 @@ size_t LoopDetector::Store(PackedKeyframe rec, bool relocalize) {
   return index;
 }
 
-void LoopDetector::RelocalizeStored(const KeyframeRecord& query, LoopResult* result) const {
+void LoopDetector::Impl::RelocalizeStored(const KeyframeRecord& query, LoopResult* result) const {
   result->relocalization = true;
   if (records_.back().size() < 5) {
     result->status = LoopStatus::kNoFeatures;
@@ -285,15 +316,16 @@ void LoopDetector::RelocalizeStored(const KeyframeRecord& query, LoopResult* res
   MatchAndVerifyPool(query, pool, result);
 }
 
-bool LoopDetector::FarAlong(const KeyframeRecord& query, size_t query_index, size_t ci) const {
+bool LoopDetector::Impl::FarAlong(const KeyframeRecord& query, size_t query_index,
+                                  size_t ci) const {
   const PackedKeyframe& c = records_[ci];
   if (options_.min_path_ratio <= 0 || !query.has_pose || !c.has_pose()) return true;
   const double chord = (query.world_from_cam.translation - c.world_from_cam().translation).norm();
   return path_length_[query_index] - path_length_[ci] >= options_.min_path_ratio * chord;
 }
 
-std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query, size_t index,
-                                                    LoopResult* result) {
+std::vector<int64_t> LoopDetector::Impl::SearchCandidates(const KeyframeRecord& query, size_t index,
+                                                          LoopResult* result) {
   const SearchAreaResult area = search_.Query(query.id);
   std::vector<int64_t> candidates;
   candidates.reserve(area.candidates.size());
@@ -320,7 +352,8 @@ std::vector<int64_t> LoopDetector::SearchCandidates(const KeyframeRecord& query,
   return candidates;
 }
 
-void LoopDetector::MergeSubSearch(LoopResult sub, CandidateSource source, LoopResult* result) {
+void LoopDetector::Impl::MergeSubSearch(LoopResult sub, CandidateSource source,
+                                        LoopResult* result) {
   // A sub-search after the search area's (the appearance fallback, earlier pose segments, earlier
   // sessions): its matching and verification time is the query's; when it detected, its loop is
   // the result, with what the area and the sub-searches before it reported.
@@ -338,8 +371,8 @@ void LoopDetector::MergeSubSearch(LoopResult sub, CandidateSource source, LoopRe
   *result = std::move(sub);
 }
 
-void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
-                                      std::vector<int64_t> in_area, LoopResult* result) {
+void LoopDetector::Impl::AppearanceFallback(const KeyframeRecord& query, size_t index,
+                                            std::vector<int64_t> in_area, LoopResult* result) {
   // Every eligible stored keyframe the area did not hold, far along the path.
   Timer stage;
   std::sort(in_area.begin(), in_area.end());
@@ -366,8 +399,8 @@ void LoopDetector::AppearanceFallback(const KeyframeRecord& query, size_t index,
   MergeSubSearch(std::move(fallback), CandidateSource::kAppearance, result);
 }
 
-std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& query, size_t index,
-                                                       const std::vector<size_t>& indices) const {
+std::vector<int64_t> LoopDetector::Impl::PreRankByAppearance(
+    const KeyframeRecord& query, size_t index, const std::vector<size_t>& indices) const {
   // The query's own K (its repeatable features when ranked so; its first fallback_fine_features
   // at a large K, as on the stored side), then its best extracted ones.
   std::span<const Descriptor> own = records_[index].descriptors();
@@ -389,7 +422,7 @@ std::vector<int64_t> LoopDetector::PreRankByAppearance(const KeyframeRecord& que
   return ids;
 }
 
-PoseReset LoopDetector::DetectPoseReset(const KeyframeInput& input) const {
+PoseReset LoopDetector::Impl::DetectPoseReset(const KeyframeInput& input) const {
   if (!input.world_from_cam || !last_pose_) return PoseReset::kNone;
   if (input.pose_reset) return PoseReset::kCaller;
   // The rules read the segment's motion: from 5 steps on (a handful of keyframes given far apart,
@@ -417,8 +450,8 @@ PoseReset LoopDetector::DetectPoseReset(const KeyframeInput& input) const {
   return PoseReset::kNone;
 }
 
-void LoopDetector::SearchEarlierSegments(const KeyframeRecord& query, size_t index,
-                                         LoopResult* result) {
+void LoopDetector::Impl::SearchEarlierSegments(const KeyframeRecord& query, size_t index,
+                                               LoopResult* result) {
   // Their world frame is not this segment's: no search area, no pose check, as for earlier
   // sessions; every keyframe counts, the ones just before the reset included (a relocalisation,
   // not a loop: the nearest place in time ties the two frames best).
@@ -435,7 +468,8 @@ void LoopDetector::SearchEarlierSegments(const KeyframeRecord& query, size_t ind
   MergeSubSearch(std::move(earlier), CandidateSource::kEarlierSegment, result);
 }
 
-void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const {
+void LoopDetector::Impl::SearchPriorSessions(const KeyframeRecord& query,
+                                             LoopResult* result) const {
   // Earlier sessions, by appearance only (their world frame is not ours).
   std::vector<PoolEntry> pool;
   pool.reserve(prior_records_.size());
@@ -448,7 +482,7 @@ void LoopDetector::SearchPriorSessions(const KeyframeRecord& query, LoopResult* 
   MergeSubSearch(std::move(prior), source, result);
 }
 
-LoopResult LoopDetector::Process(const KeyframeInput& input) {
+LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
   Timer total;
   LoopResult result;
   result.query_id = input.id;
@@ -539,7 +573,7 @@ LoopResult LoopDetector::Process(const KeyframeInput& input) {
   return finish();
 }
 
-void LoopDetector::ValidateImageInput(const KeyframeInput& input) const {
+void LoopDetector::Impl::ValidateImageInput(const KeyframeInput& input) const {
   input.intrinsics.Check();
   SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
   SL_CHECK_MSG(input.image.type() == CV_8UC1,
@@ -554,7 +588,7 @@ void LoopDetector::ValidateImageInput(const KeyframeInput& input) const {
       input.mapped_pixels.size());
 }
 
-KeyframeRecord LoopDetector::ExtractRecord(const KeyframeInput& input) const {
+KeyframeRecord LoopDetector::Impl::ExtractRecord(const KeyframeInput& input) const {
   KeyframeRecord rec;
   rec.id = input.id;
   rec.timestamp = input.timestamp;
@@ -570,13 +604,13 @@ KeyframeRecord LoopDetector::ExtractRecord(const KeyframeInput& input) const {
   return rec;
 }
 
-int LoopDetector::QueryFeatureCount() const {
+int LoopDetector::Impl::QueryFeatureCount() const {
   const FeatureOptions& f = options_.features;
   if (!options_.asymmetric_matching && options_.repeatability_window == 0) return f.max_features;
   return std::clamp(options_.query_max_features, f.max_features, f.orb_candidates);
 }
 
-std::vector<int> LoopDetector::StoredOrder(const KeyframeRecord& full) const {
+std::vector<int> LoopDetector::Impl::StoredOrder(const KeyframeRecord& full) const {
   const int k = options_.features.max_features;
   const int pool =
       std::min(static_cast<int>(full.size()),
@@ -600,14 +634,14 @@ std::vector<int> LoopDetector::StoredOrder(const KeyframeRecord& full) const {
   return order;
 }
 
-std::vector<DescriptorMatch> LoopDetector::MatchQuery(const KeyframeRecord& query,
-                                                      std::span<const Descriptor> stored) const {
+std::vector<DescriptorMatch> LoopDetector::Impl::MatchQuery(
+    const KeyframeRecord& query, std::span<const Descriptor> stored) const {
   if (options_.asymmetric_matching && query.size() > stored.size())
     return MatchStoredIntoQuery(query.descriptors, stored, options_.match);
   return MatchDescriptors(query.descriptors, stored, options_.match);
 }
 
-void LoopDetector::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const {
+void LoopDetector::Impl::SetWorldFromQuery(const KeyframeRecord& match, LoopResult* result) const {
   if (result->detected() && match.has_pose && result->pose_kind != RelativePoseKind::kNone) {
     result->world_from_query = match.world_from_cam * result->match_from_query;
     result->has_world_from_query = true;

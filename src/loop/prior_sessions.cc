@@ -1,6 +1,6 @@
 // LoopDetector: earlier map sessions (AddPriorKeyframes), relocalisation without a pose, and the
 // appearance-only matching against a pool of records that both use.
-#include "sparseloop/loop/loop_detector.h"
+#include "loop_detector_impl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +15,7 @@
 
 namespace sparseloop {
 
-void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+void LoopDetector::Impl::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
   SL_CHECK_MSG(session > 0, "prior session id must be > 0 (0 is the current session), got {}",
                session);
   SL_CHECK_MSG(!prior_index_.count(session), "prior session {} was already added", session);
@@ -55,7 +55,7 @@ void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord
   }
 }
 
-KeyframeRecord LoopDetector::prior_record(int64_t session, int64_t id) const {
+KeyframeRecord LoopDetector::Impl::prior_record(int64_t session, int64_t id) const {
   auto s = prior_index_.find(session);
   SL_CHECK_MSG(s != prior_index_.end(), "unknown prior session {}", session);
   auto it = s->second.find(id);
@@ -63,7 +63,7 @@ KeyframeRecord LoopDetector::prior_record(int64_t session, int64_t id) const {
   return UnpackRecord(prior_records_[it->second]);
 }
 
-LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
+LoopResult LoopDetector::Impl::Relocalize(const KeyframeInput& input) {
   Timer total;
   ValidateImageInput(input);
   LoopResult result;
@@ -87,15 +87,15 @@ LoopResult LoopDetector::Relocalize(const KeyframeInput& input) {
   return result;
 }
 
-int LoopDetector::PairK(int64_t session) const {
+int LoopDetector::Impl::PairK(int64_t session) const {
   const int k = options_.features.max_features;
   if (session == 0) return k;
   return prior_k_.at(session);
 }
 
-void LoopDetector::MatchAndVerifyPool(const KeyframeRecord& query,
-                                      const std::vector<PoolEntry>& pool,
-                                      LoopResult* result) const {
+void LoopDetector::Impl::MatchAndVerifyPool(const KeyframeRecord& query,
+                                            const std::vector<PoolEntry>& pool,
+                                            LoopResult* result) const {
   result->candidates = static_cast<int>(pool.size());
   if (pool.empty()) {
     result->status = LoopStatus::kNoCandidates;
