@@ -41,11 +41,10 @@ SOAK_KEYFRAMES_QUICK = 5000
 # both variants have them).
 OLD_LOOP_DEFAULTS = {
     # Fixed loop sigmas (0.5 raw steps, 0.01 rad, 0.05, weight = score), odometry 2 % / 0.002 rad
-    # / 0.002 per step, rotation gate 0.1 deg per keyframe. The old gate counted keyframes since
-    # the last accepted loop anywhere; 0.1 along the loop graph is never wider than that.
+    # / 0.002 per step. (The rotation gate's growth per keyframe is no configuration key: both
+    # variants have today's.)
     "odometry": {"translation_fraction": 0.02, "rotation_sigma_rad": 0.002, "scale_sigma": 0.002},
     "loop_information_from_estimate": False,
-    "detector": {"consistency_per_keyframe_deg": 0.1},
 }
 
 
