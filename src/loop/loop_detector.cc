@@ -185,10 +185,13 @@ int LoopDetectorOptions::EffectiveMinMatches(int k) const {
 }
 
 LoopDetector::Impl::Impl(Options options)
-    : options_(std::move(options)), search_([&] {
+    : options_(std::move(options)),
+      search_([&] {
         options_.Check();
         return options_.search;
-      }()) {
+      }()),
+      track_(PoseTrack::Rules{options_.pose_jump_factor, options_.pose_jump_max_deg,
+                              options_.pose_jump_max_scale}) {
   verify_ = options_.verify;
   verify_.seed = options_.seed;
   verify_.min_inliers = options_.EffectiveMinInliers();
@@ -289,14 +292,12 @@ size_t LoopDetector::Impl::Store(PackedKeyframe rec, bool relocalize) {
   const size_t index = records_.size();
   // A keyframe without a pose (global search only) stays where the last posed one was: the
   // path length across the gap is the chord between the posed keyframes around it.
-  if (rec.has_pose()) last_position_ = rec.world_from_cam().translation;
-  any_pose_ |= rec.has_pose();
-  any_missing_pose_ |= !rec.has_pose();
+  track_.Store(rec.has_pose() ? std::optional<Eigen::Vector3d>(rec.world_from_cam().translation)
+                              : std::nullopt);
   index_of_[rec.id()] = index;
-  segment_.push_back(current_segment_);
   // No place on the trajectory without a pose (its path length is never read: FarAlong needs
   // both poses).
-  if (!relocalize) search_.Add(rec.id(), last_position_);
+  if (!relocalize) search_.Add(rec.id(), track_.last_position());
   path_length_.push_back(relocalize ? 0.0 : search_.PathLength(rec.id()));
   records_.push_back(std::move(rec));
   return index;
@@ -422,34 +423,6 @@ std::vector<int64_t> LoopDetector::Impl::PreRankByAppearance(
   return ids;
 }
 
-PoseReset LoopDetector::Impl::DetectPoseReset(const KeyframeInput& input) const {
-  if (!input.world_from_cam || !last_pose_) return PoseReset::kNone;
-  if (input.pose_reset) return PoseReset::kCaller;
-  // The rules read the segment's motion: from 5 steps on (a handful of keyframes given far apart,
-  // e.g. photos of one place with their poses, is not a vSLAM losing track).
-  if (segment_steps_ < 5) return PoseReset::kNone;
-  const Sim3d& pose = *input.world_from_cam;
-  const Sim3d& last = *last_pose_;
-  const double max_scale = options_.pose_jump_max_scale;
-  if (max_scale > 0) {
-    const double ratio = pose.scale / last.scale;
-    if (ratio > max_scale || ratio < 1.0 / max_scale) return PoseReset::kScaleJump;
-  }
-  if (options_.pose_jump_max_deg > 0 &&
-      last.rotation.angularDistance(pose.rotation) > options_.pose_jump_max_deg * M_PI / 180.0)
-    return PoseReset::kRotationJump;
-  if (options_.pose_jump_factor > 0) {
-    std::vector<double> steps(recent_steps_.begin(), recent_steps_.end());
-    const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
-    std::nth_element(steps.begin(), mid, steps.end());
-    // The mean keeps a long stop (steps near 0) from making the first step after it a "jump".
-    const double usual = std::max(*mid, segment_path_ / segment_steps_);
-    const double step = (pose.translation - last.translation).norm();
-    if (usual > 0 && step > options_.pose_jump_factor * usual) return PoseReset::kTranslationJump;
-  }
-  return PoseReset::kNone;
-}
-
 void LoopDetector::Impl::SearchEarlierSegments(const KeyframeRecord& query, size_t index,
                                                LoopResult* result) {
   // Their world frame is not this segment's: no search area, no pose check, as for earlier
@@ -489,7 +462,7 @@ LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
   // Validate everything before any state changes, so a rejected keyframe leaves the stored map
   // exactly as it was (docs/ROBUSTNESS.md).
   const bool relocalize = ValidateInput(input);
-  const PoseReset reset = DetectPoseReset(input);
+  const PoseReset reset = track_.Classify(input.world_from_cam, input.pose_reset);
 
   // 1. Informative features: the query's extraction (all it matches with), and the K stored.
   Timer stage;
@@ -506,23 +479,8 @@ LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
 
   // 2. Store (packed: the stored pose, keypoints and depths are the quantised ones from here on,
   // the same after a round trip through the map), in a new raw pose segment after a reset.
-  if (input.world_from_cam) {
-    const Sim3d& pose = *input.world_from_cam;
-    if (reset != PoseReset::kNone) {
-      ++current_segment_;
-      search_ = SearchArea(options_.search);
-      recent_steps_.clear();
-      segment_path_ = 0.0;
-      segment_steps_ = 0;
-    } else if (last_pose_) {
-      const double step = (pose.translation - last_pose_->translation).norm();
-      recent_steps_.push_back(step);
-      if (recent_steps_.size() > 20) recent_steps_.pop_front();
-      segment_path_ += step;
-      ++segment_steps_;
-    }
-    last_pose_ = pose;
-  }
+  const double raw_step = track_.Advance(input.world_from_cam, reset);
+  if (reset != PoseReset::kNone) search_ = SearchArea(options_.search);
   const size_t index = Store(std::move(rec), relocalize);
   if (!query.has_pose && OverlapBufferUsed(query)) {
     const size_t n = std::min(query.size(), static_cast<size_t>(options_.overlap_features));
@@ -532,8 +490,9 @@ LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
       overlap_buffer_.pop_front();
   }
   const auto finish = [&] {
-    result.pose_segment = current_segment_;  // (the fallbacks replace the result)
+    result.pose_segment = track_.current_segment();  // (the fallbacks replace the result)
     result.pose_reset = reset;
+    result.raw_step = raw_step;
     result.timings.total_ms = total.ElapsedMs();
     return result;
   };
@@ -561,7 +520,7 @@ LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
       options_.search.strategy != SearchStrategy::kGlobal) {
     AppearanceFallback(query, index, std::move(candidates), &result);
   }
-  if (!result.detected() && query.has_pose && current_segment_ > 0)
+  if (!result.detected() && query.has_pose && track_.current_segment() > 0)
     SearchEarlierSegments(query, index, &result);
   if (result.detected()) {
     SetWorldFromQuery(Stored(index_of_.at(result.match_id)), &result);

@@ -7,6 +7,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "pose_track.h"
 #include "sparseloop/loop/loop_detector.h"
 
 namespace sparseloop {
@@ -53,13 +54,11 @@ struct LoopDetector::Impl {
                                            const std::vector<size_t>& indices) const;
   // search_prior_sessions: the keyframes of earlier sessions, by appearance.
   void SearchPriorSessions(const KeyframeRecord& query, LoopResult* result) const;
-  // Raw pose segments: why `input` starts a new one (kNone: it does not).
-  PoseReset DetectPoseReset(const KeyframeInput& input) const;
   // The keyframes of earlier pose segments, by appearance (pre-ranked as the fallback is).
   void SearchEarlierSegments(const KeyframeRecord& query, size_t index, LoopResult* result);
   // Both stored keyframes are in the same raw pose segment (their raw relative pose means
   // something).
-  bool SameSegment(size_t a, size_t b) const { return segment_[a] == segment_[b]; }
+  bool SameSegment(size_t a, size_t b) const { return track_.SameSegment(a, b); }
   // Matching and ranking of the candidates, then TryCandidate on the best max_verify until one
   // is detected; the most informative outcome goes to *result. `weak_pairs`: whether
   // Options::weak_pairs applies (not to the appearance fallback's candidates).
@@ -200,17 +199,7 @@ struct LoopDetector::Impl {
   std::optional<std::pair<size_t, size_t>> last_support_;
   // Whether last_support_ confirms a weak pair (query index, match index).
   bool Agrees(size_t query_index, size_t match_index) const;
-  bool any_pose_ = false;
-  bool any_missing_pose_ = false;
-  Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();  // of the last keyframe with a pose
-  // Raw pose segments (KeyframeInput::pose_reset, Options::pose_jump_*): the segment of each
-  // record; the current segment's last raw pose, its last steps (at most 20), path and step count.
-  std::vector<int> segment_;
-  int current_segment_ = 0;
-  std::optional<Sim3d> last_pose_;
-  std::deque<double> recent_steps_;
-  double segment_path_ = 0.0;
-  int segment_steps_ = 0;
+  PoseTrack track_;  // raw pose segments and the previous raw pose
   // SearchArea::PathLength of each record, read once when it is stored: FarAlong reads it for
   // every candidate (the appearance fallback: every stored keyframe) without a hash lookup.
   std::vector<double> path_length_;

@@ -77,17 +77,9 @@ LoopEvent LoopClosing::AddKeyframe(const KeyframeInput& keyframe) {
   // covariance, if any, is not used.
   optimizer_->PushKeyframe(keyframe.id, raw, odometry_information);
   event.in_graph = true;
-  // Local step length at the query: from the previous graph keyframe (RunPipeline: the previous
-  // dataset frame; the same unless frames were skipped).
-  // Across a raw pose reset the jump is no step: the last step before it stands in.
-  double local_step = has_last_raw_ ? (raw.translation - last_raw_.translation).norm() : 0.0;
-  if (event.result.pose_reset != PoseReset::kNone) {
-    local_step = last_step_;
-  } else {
-    last_step_ = local_step;
-  }
-  has_last_raw_ = true;
-  last_raw_ = raw;
+  // Local step length at the query: from the previous graph keyframe, which is the detector's
+  // previous keyframe with a pose (across a raw pose reset the last step before it stands in).
+  const double local_step = event.result.raw_step;
 
   const LoopResult& r = event.result;
   // A relocalisation into an earlier raw pose segment of this session is a loop edge when its

@@ -108,6 +108,9 @@ struct LoopResult {
   // in the segment of the posed keyframe before it), and whether and why it started one.
   int pose_segment = 0;
   PoseReset pose_reset = PoseReset::kNone;
+  // The raw step at the query (raw units): the distance from the previous keyframe with a pose;
+  // across a pose reset the last step before it; 0 for the first pose or without one.
+  double raw_step = 0.0;
   int matches = 0;     // descriptor matches with match_id, count
   int inliers = 0;     // geometric inliers with match_id, count
   double score = 0.0;  // inliers / K (K = options.features.max_features), in [0, 1]

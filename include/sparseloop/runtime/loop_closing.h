@@ -154,9 +154,6 @@ class LoopClosing {
   std::mutex api_mutex_;
   bool has_last_id_ = false;
   int64_t last_id_ = 0;
-  bool has_last_raw_ = false;  // the previous graph keyframe (local step length of a loop)
-  Sim3d last_raw_;
-  double last_step_ = 0.0;  // the last raw step that was not a pose reset
   std::atomic<bool> finished_{false};
   std::atomic<size_t> num_keyframes_{0};
   std::atomic<size_t> num_loops_{0};
