@@ -220,7 +220,7 @@ LoopResult LoopDetector::MatchAgainst(const KeyframeRecord& query,
 void LoopDetector::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
   impl_->AddPriorKeyframes(session, std::move(records));
 }
-size_t LoopDetector::num_prior_keyframes() const { return impl_->prior_records_.size(); }
+size_t LoopDetector::num_prior_keyframes() const { return impl_->priors_.size(); }
 size_t LoopDetector::num_anchor_loops() const { return impl_->accepted_loops_.size(); }
 KeyframeRecord LoopDetector::prior_record(int64_t session, int64_t id) const {
   return impl_->prior_record(session, id);
@@ -312,8 +312,8 @@ void LoopDetector::Impl::RelocalizeStored(const KeyframeRecord& query, LoopResul
   std::vector<PoolEntry> pool;
   for (size_t i = 0; i + 1 < records_.size(); ++i)
     if (records_[i].has_pose()) pool.push_back({0, &records_[i]});
-  for (size_t i = 0; i < prior_records_.size(); ++i)
-    if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
+  for (size_t i = 0; i < priors_.size(); ++i)
+    if (priors_.record(i).has_pose()) pool.push_back({priors_.session(i), &priors_.record(i)});
   MatchAndVerifyPool(query, pool, result);
 }
 
@@ -445,9 +445,9 @@ void LoopDetector::Impl::SearchPriorSessions(const KeyframeRecord& query,
                                              LoopResult* result) const {
   // Earlier sessions, by appearance only (their world frame is not ours).
   std::vector<PoolEntry> pool;
-  pool.reserve(prior_records_.size());
-  for (size_t i = 0; i < prior_records_.size(); ++i)
-    pool.push_back({prior_session_[i], &prior_records_[i]});
+  pool.reserve(priors_.size());
+  for (size_t i = 0; i < priors_.size(); ++i)
+    pool.push_back({priors_.session(i), &priors_.record(i)});
   LoopResult prior;
   prior.query_id = query.id;
   MatchAndVerifyPool(query, pool, &prior);
@@ -524,7 +524,7 @@ LoopResult LoopDetector::Impl::Process(const KeyframeInput& input) {
     SearchEarlierSegments(query, index, &result);
   if (result.detected()) {
     SetWorldFromQuery(Stored(index_of_.at(result.match_id)), &result);
-  } else if (options_.search_prior_sessions && !prior_records_.empty()) {
+  } else if (options_.search_prior_sessions && !priors_.empty()) {
     SearchPriorSessions(query, &result);
   }
   result.relocalization =

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "pose_track.h"
+#include "prior_sessions.h"
 #include "sparseloop/loop/loop_detector.h"
 
 namespace sparseloop {
@@ -205,16 +206,11 @@ struct LoopDetector::Impl {
   std::vector<double> path_length_;
   std::optional<BinaryAnnIndex> ann_;  // retrieval == kAnn; labels are indices into records_
   size_t ann_indexed_ = 0;             // records_[0, ann_indexed_) are in ann_
-  // Earlier sessions (AddPriorKeyframes), searched by appearance only.
-  std::vector<PackedKeyframe> prior_records_;
-  std::vector<int64_t> prior_session_;  // session of each prior record
-  // Features per keyframe each earlier session was stored with (its records' most), by session.
-  std::unordered_map<int64_t, int> prior_k_;
+  PriorSessions priors_;  // earlier sessions (AddPriorKeyframes), searched by appearance only
   // The K of a pair of the query and a record of `session` (0 = current): the K that record was
   // stored with. Floors and score use it. (The smaller of the two K let a K = 20 symmetric query
   // through with 8 inliers against K = 150 records: 3 wrong loops of 49; multisession_test.)
   int PairK(int64_t session) const;
-  std::unordered_map<int64_t, std::unordered_map<int64_t, size_t>> prior_index_;  // session, id
 };
 
 }  // namespace sparseloop

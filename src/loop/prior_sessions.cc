@@ -1,5 +1,5 @@
-// LoopDetector: earlier map sessions (AddPriorKeyframes), relocalisation without a pose, and the
-// appearance-only matching against a pool of records that both use.
+// Earlier map sessions (PriorSessions, LoopDetector::AddPriorKeyframes), relocalisation without a
+// pose, and the appearance-only matching against a pool of records that both use.
 #include "loop_detector_impl.h"
 
 #include <algorithm>
@@ -15,14 +15,14 @@
 
 namespace sparseloop {
 
-void LoopDetector::Impl::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+void PriorSessions::Add(int64_t session, std::vector<KeyframeRecord> records) {
   SL_CHECK_MSG(session > 0, "prior session id must be > 0 (0 is the current session), got {}",
                session);
-  SL_CHECK_MSG(!prior_index_.count(session), "prior session {} was already added", session);
+  SL_CHECK_MSG(!index_.count(session), "prior session {} was already added", session);
   std::unordered_map<int64_t, size_t> index;
   for (size_t i = 0; i < records.size(); ++i) {
     const KeyframeRecord& r = records[i];
-    SL_CHECK_MSG(index.emplace(r.id, prior_records_.size() + i).second,
+    SL_CHECK_MSG(index.emplace(r.id, records_.size() + i).second,
                  "prior session {}: duplicate keyframe id {}", session, r.id);
     SL_CHECK_MSG(std::isfinite(r.focal_px) && r.focal_px > 0,
                  "prior session {} keyframe {}: focal_px must be > 0, got {}", session, r.id,
@@ -40,27 +40,35 @@ void LoopDetector::Impl::AddPriorKeyframes(int64_t session, std::vector<Keyframe
                    session, r.id);
     }
   }
-  ClearCallCaches();  // prior_records_ may move
   size_t most = 0;
   for (const KeyframeRecord& r : records) most = std::max(most, r.size());
-  prior_k_[session] = static_cast<int>(std::max<size_t>(most, 1));
+  k_[session] = static_cast<int>(std::max<size_t>(most, 1));
   std::vector<PackedKeyframe> packed;
   packed.reserve(records.size());
   for (const auto& r : records) packed.push_back(PackRecord(r));
-  prior_index_[session] = std::move(index);
-  prior_records_.reserve(prior_records_.size() + packed.size());
+  index_[session] = std::move(index);
+  records_.reserve(records_.size() + packed.size());
   for (auto& r : packed) {
-    prior_records_.push_back(std::move(r));
-    prior_session_.push_back(session);
+    records_.push_back(std::move(r));
+    session_.push_back(session);
   }
 }
 
-KeyframeRecord LoopDetector::Impl::prior_record(int64_t session, int64_t id) const {
-  auto s = prior_index_.find(session);
-  SL_CHECK_MSG(s != prior_index_.end(), "unknown prior session {}", session);
+KeyframeRecord PriorSessions::Record(int64_t session, int64_t id) const {
+  auto s = index_.find(session);
+  SL_CHECK_MSG(s != index_.end(), "unknown prior session {}", session);
   auto it = s->second.find(id);
   SL_CHECK_MSG(it != s->second.end(), "unknown keyframe id {} in prior session {}", id, session);
-  return UnpackRecord(prior_records_[it->second]);
+  return UnpackRecord(records_[it->second]);
+}
+
+void LoopDetector::Impl::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
+  ClearCallCaches();  // the prior records may move
+  priors_.Add(session, std::move(records));
+}
+
+KeyframeRecord LoopDetector::Impl::prior_record(int64_t session, int64_t id) const {
+  return priors_.Record(session, id);
 }
 
 LoopResult LoopDetector::Impl::Relocalize(const KeyframeInput& input) {
@@ -79,8 +87,8 @@ LoopResult LoopDetector::Impl::Relocalize(const KeyframeInput& input) {
     std::vector<PoolEntry> pool;
     for (const auto& r : records_)
       if (r.has_pose()) pool.push_back({0, &r});
-    for (size_t i = 0; i < prior_records_.size(); ++i)
-      if (prior_records_[i].has_pose()) pool.push_back({prior_session_[i], &prior_records_[i]});
+    for (size_t i = 0; i < priors_.size(); ++i)
+      if (priors_.record(i).has_pose()) pool.push_back({priors_.session(i), &priors_.record(i)});
     MatchAndVerifyPool(rec, pool, &result);
   }
   result.timings.total_ms = total.ElapsedMs();
@@ -90,7 +98,7 @@ LoopResult LoopDetector::Impl::Relocalize(const KeyframeInput& input) {
 int LoopDetector::Impl::PairK(int64_t session) const {
   const int k = options_.features.max_features;
   if (session == 0) return k;
-  return prior_k_.at(session);
+  return priors_.K(session);
 }
 
 void LoopDetector::Impl::MatchAndVerifyPool(const KeyframeRecord& query,
@@ -105,7 +113,7 @@ void LoopDetector::Impl::MatchAndVerifyPool(const KeyframeRecord& query,
   // Each pair's floors are those of the K its record was stored with (PairK): the ranking keeps
   // what passes the lowest, each candidate is then held to its own.
   int lowest_floor = options_.EffectiveMinMatches();
-  for (const auto& session_k : prior_k_)
+  for (const auto& session_k : priors_.ks())
     lowest_floor = std::min(lowest_floor, options_.EffectiveMinMatches(session_k.second));
   const loop_internal::CandidateRanking ranking = loop_internal::RankCandidates(
       pool.size(), [&](size_t e) -> const PackedKeyframe& { return *pool[e].record; },
