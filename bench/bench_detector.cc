@@ -248,6 +248,8 @@ void BM_QueryStoredKeyframes(benchmark::State& state) {
   std::mt19937_64 rng(7);
   SearchAreaOptions so;
   so.strategy = SearchStrategy::kRadius;
+  so.drift_rate = 0.0;  // the paper's area (or the radius) alone
+  so.exclude_recent = 30;
   so.radius = 2.0;
   SearchArea area(so);
   std::vector<KeyframeRecord> records;

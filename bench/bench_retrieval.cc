@@ -85,6 +85,7 @@ void BM_SparseloopPaperArea(benchmark::State& state) {
   const auto pts = ChainOfLoops(n);
   SearchAreaOptions so;
   so.strategy = SearchStrategy::kPaper;
+  so.drift_rate = 0.0;  // the paper's area (or the radius) alone
   so.plane_normal = Eigen::Vector3d::UnitY();
   so.exclude_recent = kExcludeRecent;
   SearchArea area(so);

@@ -51,6 +51,7 @@ std::vector<Eigen::Vector3d> ChainOfLoops(int n) {
 SearchAreaOptions Options(SearchStrategy strategy, double drift) {
   SearchAreaOptions o;
   o.strategy = strategy;
+  o.drift_rate = 0.0;                         // the paper's area (or the radius) alone
   o.plane_normal = Eigen::Vector3d::UnitY();  // KITTI-like: ground plane x-z
   o.exclude_recent = 50;
   o.radius = 10.0;

@@ -276,7 +276,7 @@ json AgreementCeiling(const std::vector<OracleTop>& top, size_t queries_with_gt,
 json RtabmapOracle(const std::vector<cv::Mat>& images, const std::set<std::pair<int, int>>& gt,
                    const std::set<int>& queries_with_gt) {
   json out;
-  const int gap = SearchAreaOptions{}.exclude_recent;
+  const int gap = 30;  // recent keyframes that are no GT revisit (the paper area's own gap)
   for (const int k : {15, 16, 17, 18, 20, 300}) {
     for (const bool asymmetric : {false, true}) {
       if (k == 300 && asymmetric) continue;  // the query extraction is K already

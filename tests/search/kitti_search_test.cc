@@ -85,6 +85,8 @@ TEST(SearchAreaKitti, PaperAreaCoverageOfGroundTruthLoops) {
   ASSERT_GT(loops.size(), 100u);
 
   SearchAreaOptions paper;
+  paper.exclude_recent = 30;  // the paper area alone
+  paper.drift_rate = 0.0;
   paper.plane_normal = Eigen::Vector3d::UnitY();  // KITTI camera frame: ground plane x-z
   paper.exclude_recent = 50;                      // 5 s at 10 Hz
   const Coverage plain = Measure(positions, loops, paper);

@@ -17,6 +17,15 @@
 namespace sparseloop {
 namespace {
 
+// The paper's area alone, as these tests were written for: 30 recent keyframes excluded, no
+// uncertainty area (the product's defaults: 10 and drift_rate 0.1, tested where said).
+SearchAreaOptions PaperArea() {
+  SearchAreaOptions o;
+  o.exclude_recent = 30;
+  o.drift_rate = 0.0;
+  return o;
+}
+
 using test::BruteForceSearchArea;
 
 std::vector<int64_t> Range(int64_t first, int64_t last) {
@@ -42,7 +51,7 @@ SearchArea Build(const SearchAreaOptions& options, const std::vector<Eigen::Vect
 }
 
 TEST(SearchAreaPaper, SquareRayHitsFirstSideQuadrant) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 5;
   const auto pts = SquareThenDown();
@@ -63,7 +72,7 @@ TEST(SearchAreaPaper, SquareRayHitsFirstSideQuadrant) {
 }
 
 TEST(SearchAreaPaper, SquareNarrowWedge) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 5;
   o.alpha_deg = 45.0;
@@ -75,7 +84,7 @@ TEST(SearchAreaPaper, SquareNarrowWedge) {
 }
 
 TEST(SearchAreaPaper, SquareInTiltedPlaneWithFittedPlaneGivesSameAnswer) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.exclude_recent = 5;
   o.alpha_deg = 45.0;
   const Eigen::Matrix3d rot =
@@ -89,7 +98,7 @@ TEST(SearchAreaPaper, SquareInTiltedPlaneWithFittedPlaneGivesSameAnswer) {
 }
 
 TEST(SearchAreaPaper, StraightLineFallsBackToStart) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 10;
   o.fallback_count = 20;
@@ -106,7 +115,7 @@ TEST(SearchAreaPaper, BackwardRayFromStart) {
   // East along y = 0, north to (10,5), west along y = 5 past x = 0 to (-3,5), then south: the
   // motion ray from (-3,2) misses every segment and meets the backward ray from x'_0 (pointing
   // away from x'_1, i.e. -x) at (-3,0); keyframe 0 is the nearest to it.
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 3;
   std::vector<Eigen::Vector3d> pts;
@@ -122,7 +131,7 @@ TEST(SearchAreaPaper, BackwardRayFromStart) {
 }
 
 TEST(SearchAreaGlobal, AllButRecent) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.strategy = SearchStrategy::kGlobal;
   o.exclude_recent = 30;
   std::vector<Eigen::Vector3d> pts;
@@ -136,7 +145,7 @@ TEST(SearchAreaGlobal, AllButRecent) {
 }
 
 TEST(SearchAreaRadius, KnownNeighbours3dAndInPlane) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.strategy = SearchStrategy::kRadius;
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 1;
@@ -152,7 +161,7 @@ TEST(SearchAreaRadius, KnownNeighbours3dAndInPlane) {
 }
 
 TEST(SearchAreaDrift, MarginGrowsWithPathAndResetsOnLoop) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.strategy = SearchStrategy::kRadius;
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 0;
@@ -207,7 +216,7 @@ TEST(SearchAreaUncertainty, ContainsTheTruthOnDriftedLapsWhereThePaperAreaDoesNo
         raw.push_back(raw.back() +
                       scale * (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * step));
       }
-      SearchAreaOptions paper;
+      SearchAreaOptions paper = PaperArea();
       paper.plane_normal = Eigen::Vector3d::UnitZ();
       paper.exclude_recent = 10;
       SearchAreaOptions uncertain = paper;
@@ -269,7 +278,7 @@ TEST(SearchAreaUncertainty, ContainsTheTruthOnDriftedLapsWhereThePaperAreaDoesNo
 // definition) at every stored keyframe; unknown ids are refused.
 TEST(SearchAreaPath, PathLengthEqualsTheTrajectorysCumulativeDistance) {
   const std::vector<Eigen::Vector3d> pts = SquareThenDown();
-  const SearchArea area = Build(SearchAreaOptions{}, pts);
+  const SearchArea area = Build(PaperArea(), pts);
   Trajectory traj;
   for (size_t k = 0; k < pts.size(); ++k) {
     traj.poses.push_back({double(k), int64_t(k), Rigid3d(Eigen::Quaterniond::Identity(), pts[k])});
@@ -282,7 +291,7 @@ TEST(SearchAreaPath, PathLengthEqualsTheTrajectorysCumulativeDistance) {
 }
 
 TEST(SearchAreaPaper, TooShortAndNoMotion) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.exclude_recent = 2;
   SearchArea area(o);
   area.Add(0, Eigen::Vector3d::Zero());
@@ -294,7 +303,7 @@ TEST(SearchAreaPaper, TooShortAndNoMotion) {
 }
 
 TEST(SearchAreaOptions, CheckAndCallerErrors) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   EXPECT_NO_THROW(o.Check());
   o.alpha_deg = 0.0;
   EXPECT_THROW(o.Check(), std::invalid_argument);
@@ -311,7 +320,7 @@ TEST(SearchAreaOptions, CheckAndCallerErrors) {
   EXPECT_THROW(o.Check(), std::invalid_argument);
   o.refit_growth = 1.0;
   EXPECT_NO_THROW(o.Check());
-  SearchArea area(SearchAreaOptions{});
+  SearchArea area(PaperArea());
   area.Add(4, Eigen::Vector3d::Zero());
   EXPECT_THROW(area.Add(4, Eigen::Vector3d::Ones()), std::invalid_argument);
   EXPECT_THROW(area.Query(5), std::invalid_argument);
@@ -371,7 +380,7 @@ TEST(SearchAreaOracle, IdenticalToBruteForceOnRandomTrajectories) {
     Eigen::Matrix3d rot;
     const int n = 150 + static_cast<int>(150 * uni(rng));
     const auto pts = MakeTrajectory(shape, n, rng, &rot);
-    SearchAreaOptions o;
+    SearchAreaOptions o = PaperArea();
     o.strategy = static_cast<SearchStrategy>((trial / 3) % 3);
     o.alpha_deg = 10.0 + 170.0 * uni(rng);
     o.exclude_recent = static_cast<int>(20 * uni(rng));
@@ -443,7 +452,7 @@ TEST(SearchAreaPlane, FittedNormalMatchesTiltAndIsStable) {
   auto rng = test::SeededRng(4);
   Eigen::Matrix3d rot;
   const auto pts = MakeTrajectory(Shape::kCircles, 2000, rng, &rot);
-  SearchArea area(SearchAreaOptions{});
+  SearchArea area(PaperArea());
   Eigen::Vector3d previous = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < pts.size(); ++k) {
     area.Add(static_cast<int64_t>(k), pts[k]);
@@ -459,7 +468,7 @@ TEST(SearchAreaPlane, FittedNormalMatchesTiltAndIsStable) {
 // Writes the geometry of one paper query for docs/img/search_area.png
 // (scripts/plot_search_area.py reads it). Also a check that the JSON holds the answer.
 TEST(SearchAreaFigure, DumpGeometryJson) {
-  SearchAreaOptions o;
+  SearchAreaOptions o = PaperArea();
   o.plane_normal = Eigen::Vector3d::UnitZ();
   o.exclude_recent = 5;
   o.alpha_deg = 60.0;

@@ -27,10 +27,10 @@ const char* ToString(CandidateRetrieval retrieval);
 CandidateRetrieval ParseCandidateRetrieval(const std::string& name);
 
 struct LoopDetectorOptions {
-  FeatureOptions features;                     // informative ORB (K = features.max_features)
-  SearchAreaOptions search = DefaultSearch();  // search area on the raw trajectory
-  MatchOptions match;                          // Hamming matching
-  VerifyOptions verify;                        // geometric verification (seed inside)
+  FeatureOptions features;   // informative ORB (K = features.max_features)
+  SearchAreaOptions search;  // search area on the raw trajectory
+  MatchOptions match;        // Hamming matching
+  VerifyOptions verify;      // geometric verification (seed inside)
   // Asymmetric matching: a stored record keeps its K features (memory per
   // keyframe), but the keyframe being checked is matched with its whole ranked extraction, up
   // to query_max_features (ORB extracts them anyway; only what is stored must be small). Every
@@ -289,15 +289,6 @@ struct LoopDetectorOptions {
   // session stored at another K).
   int EffectiveMinInliers(int k) const;
   int EffectiveMinMatches(int k) const;
-  static SearchAreaOptions DefaultSearch() {
-    SearchAreaOptions s;
-    s.exclude_recent = 10;
-    // The uncertainty area: 10 % of the raw path between two passes covers the
-    // drift of the benchmark's renders up to x4 (street KITTI 00 / 05 / 07, aerial), raw t_err
-    // 1.7-28 %, with zero false loops accepted; docs/SEARCH_AREA.md "Uncertainty area".
-    s.drift_rate = 0.1;
-    return s;
-  }
 };
 
 }  // namespace sparseloop
