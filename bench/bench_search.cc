@@ -48,23 +48,22 @@ std::vector<Eigen::Vector3d> ChainOfLoops(int n) {
   return pts;
 }
 
-SearchAreaOptions Options(SearchStrategy strategy, double drift) {
+SearchAreaOptions Options(SearchStrategy strategy) {
   SearchAreaOptions o;
   o.strategy = strategy;
   o.drift_rate = 0.0;                         // the paper's area (or the radius) alone
   o.plane_normal = Eigen::Vector3d::UnitY();  // KITTI-like: ground plane x-z
   o.exclude_recent = 50;
   o.radius = 10.0;
-  o.drift_tolerance = drift;
   return o;
 }
 
-void BM_Query(benchmark::State& state, SearchStrategy strategy, double drift) {
+void BM_Query(benchmark::State& state, SearchStrategy strategy) {
   const int n = static_cast<int>(state.range(0));
   const auto pts = ChainOfLoops(n);
-  SearchArea area(Options(strategy, drift));
+  SearchArea area(Options(strategy));
   for (int k = 0; k < n; ++k) area.Add(k, pts[k]);
-  // A loop was accepted ~800 keyframes ago, so the drift margin is ~8 m at 1 %, whatever N.
+  // A loop was accepted ~800 keyframes ago.
   area.OnLoopAccepted(n - 1 - 800 > 0 ? n - 1 - 800 : 0, 0);
   // Query the most recent 256 keyframes in turn (the area only looks at earlier keyframes).
   int i = 0;
@@ -84,7 +83,7 @@ void BM_Add(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
   const auto pts = ChainOfLoops(n);
   for (auto _ : state) {
-    SearchAreaOptions o = Options(SearchStrategy::kPaper, 0.0);
+    SearchAreaOptions o = Options(SearchStrategy::kPaper);
     o.plane_normal.reset();  // include the PCA refits
     SearchArea area(o);
     for (int k = 0; k < n; ++k) area.Add(k, pts[k]);
@@ -93,19 +92,9 @@ void BM_Add(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * n);
 }
 
-BENCHMARK_CAPTURE(BM_Query, paper, SearchStrategy::kPaper, 0.0)->Arg(1000)->Arg(10000)->Arg(100000);
-BENCHMARK_CAPTURE(BM_Query, paper_drift1pct, SearchStrategy::kPaper, 0.01)
-    ->Arg(1000)
-    ->Arg(10000)
-    ->Arg(100000);
-BENCHMARK_CAPTURE(BM_Query, radius, SearchStrategy::kRadius, 0.0)
-    ->Arg(1000)
-    ->Arg(10000)
-    ->Arg(100000);
-BENCHMARK_CAPTURE(BM_Query, global, SearchStrategy::kGlobal, 0.0)
-    ->Arg(1000)
-    ->Arg(10000)
-    ->Arg(100000);
+BENCHMARK_CAPTURE(BM_Query, paper, SearchStrategy::kPaper)->Arg(1000)->Arg(10000)->Arg(100000);
+BENCHMARK_CAPTURE(BM_Query, radius, SearchStrategy::kRadius)->Arg(1000)->Arg(10000)->Arg(100000);
+BENCHMARK_CAPTURE(BM_Query, global, SearchStrategy::kGlobal)->Arg(1000)->Arg(10000)->Arg(100000);
 BENCHMARK(BM_Add)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -151,10 +151,7 @@ def run_all(r, quick):
         runs[(name, "default")] = d
     for d in drift_scales:
         poses = r.out / "seq" / f"street07_drift{d:g}" / "poses_raw.txt"
-        for variant, det in (("default", {}), ("paper", OLD_AREA_DEFAULTS["detector"]),
-                             ("paper_drift", {"search": {"drift_tolerance": 0.05, "drift_rate": 0.0},
-                                              "max_loop_distance_steps": 0.0,
-                                              "appearance_fallback": False})):
+        for variant, det in (("default", {}), ("paper", OLD_AREA_DEFAULTS["detector"])):
             task, rd = run_task(r, "street07", f"drift{d:g}_{variant}",
                                 detector_config(**det), poses=poses)
             tasks.append(task)

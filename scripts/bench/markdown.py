@@ -549,10 +549,9 @@ def robustness_section(res):
     for name, (kind, v) in sorted(res["robust"].items(), key=lambda x: (x[1][0], x[1][1])):
         m = res["metrics"][name]["default"]
         rows.append([kind, v, m["recall_100p_accepted"], m["false_detected"], m["false_accepted"]])
-    labels = {"default": "drift (default area)", "paper": "drift (paper area only)",
-              "paper_drift": "drift (paper + 5 % tolerance)"}
+    labels = {"default": "drift (default area)", "paper": "drift (paper area only)"}
     for d in res["drift_scales"]:
-        for variant in ("paper", "paper_drift", "default"):
+        for variant in ("paper", "default"):
             m = res["metrics"]["street07"].get(f"drift{d:g}_{variant}")
             if m:
                 rows.append([labels[variant], d, m["recall_100p_accepted"],

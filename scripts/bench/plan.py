@@ -94,8 +94,6 @@ def ablation_variants():
         "default": ("", {}, {}),
         "search_paper_only": ("search area", OLD_AREA_DEFAULTS["detector"], {}),
         "search_no_fallback": ("search area", {"appearance_fallback": False}, {}),
-        "search_paper_drift": ("search area", {**s(drift_tolerance=0.05, drift_rate=0.0),
-                                               "appearance_fallback": False}, {}),
         "search_radius": ("search area", s(strategy="radius", radius=20.0), {}),
         "search_global": ("search area", s(strategy="global"), {}),
         "rank_popcount": ("feature ranking", f(ranking="popcount"), {}),
@@ -141,7 +139,6 @@ ABLATION_LABELS = {
     "search_paper_only": "paper area only (no uncertainty area, fallback or gate)",
     "search_no_fallback": "default without the appearance fallback (paper search + uncertainty "
                           "area)",
-    "search_paper_drift": "paper + drift tolerance 5 % (no uncertainty area, no fallback)",
     "search_radius": "radius 20 (raw units)",
     "search_global": "global (every past keyframe)",
     "rank_popcount": "popcount ranking (the paper's)",

@@ -93,7 +93,7 @@ def plot_robustness(res, path):
         kinds.setdefault(kind, []).append((v, m["recall_100p_accepted"], m["false_accepted"]))
     drift = []
     for d in res["drift_scales"]:
-        for variant in ("paper", "paper_drift", "default"):
+        for variant in ("paper", "default"):
             m = res["metrics"]["street07"].get(f"drift{d:g}_{variant}")
             if m:
                 drift.append((variant, d, m["recall_100p_accepted"], m["false_accepted"]))
@@ -112,7 +112,7 @@ def plot_robustness(res, path):
         ax.set_title(f"aerial: {kind}", fontsize=9)
         ax.grid(alpha=0.3)
     ax = axes[-1]
-    for variant, style in (("paper", "o-"), ("paper_drift", "s--"), ("default", "^-")):
+    for variant, style in (("paper", "o-"), ("default", "^-")):
         pts = [(d, rc) for v, d, rc, _ in drift if v == variant]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], style, label=variant)
     ax.set_xlabel("raw drift (x default drift rates)")

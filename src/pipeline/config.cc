@@ -169,8 +169,6 @@ void AddSearchKeys(KeyList& k) {
         "radius: search radius around the current position");
   k.Add(s + "radius_in_plane", SL_FIELD(detector.search.radius_in_plane), "",
         "radius: measured in the motion plane (true) or in 3D (false)");
-  k.Add(s + "drift_tolerance", SL_FIELD(detector.search.drift_tolerance), "fraction",
-        "widening by this fraction of the path since the last loop (0: off)");
   k.Add(s + "drift_rate", SL_FIELD(detector.search.drift_rate), "fraction",
         "uncertainty area: keyframes within base + this fraction of the raw path between them "
         "and the query, or through a recent loop (0: off)");

@@ -37,11 +37,6 @@ double RayHit(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, const E
   return s;
 }
 
-double PointRayDistance(const Eigen::Vector2d& w, const Eigen::Vector2d& dir) {
-  const double t = std::max(0.0, w.dot(dir));
-  return (w - t * dir).norm();
-}
-
 double PointSegmentDistance(const Eigen::Vector2d& x, const Eigen::Vector2d& a,
                             const Eigen::Vector2d& b) {
   const Eigen::Vector2d e = b - a;
@@ -64,14 +59,6 @@ bool InWedge(const Eigen::Vector2d& w, const Eigen::Vector2d& dir, double alpha,
   if (side == 0) return std::abs(theta) <= alpha + kAngleSlack;
   const double signed_theta = side * theta;
   return signed_theta >= -kAngleSlack && signed_theta <= alpha + kAngleSlack;
-}
-
-double WedgeDistance(const Eigen::Vector2d& w, const Eigen::Vector2d& dir, double alpha, int side) {
-  if (InWedge(w, dir, alpha, side)) return 0.0;
-  // Outside a closed set the nearest point is on its boundary: the two bounding rays.
-  const Eigen::Vector2d b1 = side == 0 ? Rotate(dir, -alpha) : dir;
-  const Eigen::Vector2d b2 = Rotate(dir, side == 0 ? alpha : side * alpha);
-  return std::min(PointRayDistance(w, b1), PointRayDistance(w, b2));
 }
 
 uint64_t CellKey(int64_t ix, int64_t iy) {
@@ -213,10 +200,9 @@ std::string SearchAreaResult::BriefReport() const {
   auto opt = [](const std::optional<int64_t>& v) {
     return v ? fmt::format("{}", *v) : std::string("-");
   };
-  return fmt::format("{} {} {} {} candidates start={} end={} range=[{},{}] margin={:.3f}",
-                     ToString(strategy), ToString(status), ToString(branch), candidates.size(),
-                     opt(start_keyframe), opt(end_keyframe), opt(range_first), opt(range_last),
-                     drift_margin);
+  return fmt::format("{} {} {} {} candidates start={} end={} range=[{},{}]", ToString(strategy),
+                     ToString(status), ToString(branch), candidates.size(), opt(start_keyframe),
+                     opt(end_keyframe), opt(range_first), opt(range_last));
 }
 
 void SearchAreaOptions::Check() const {
@@ -225,8 +211,6 @@ void SearchAreaOptions::Check() const {
   SL_CHECK_MSG(exclude_recent >= 0, "exclude_recent must be >= 0, got {}", exclude_recent);
   SL_CHECK_MSG(radius >= 0.0 && std::isfinite(radius), "radius must be finite and >= 0, got {}",
                radius);
-  SL_CHECK_MSG(drift_tolerance >= 0.0 && std::isfinite(drift_tolerance),
-               "drift_tolerance must be finite and >= 0, got {}", drift_tolerance);
   SL_CHECK_MSG(drift_rate >= 0.0 && std::isfinite(drift_rate),
                "drift_rate must be finite and >= 0, got {}", drift_rate);
   SL_CHECK_MSG(drift_base_steps >= 0.0 && std::isfinite(drift_base_steps),
@@ -264,7 +248,6 @@ struct SearchArea::Impl {
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
   size_t built_size = 0;  // size at the last rebuild
   Grid grid;
-  int32_t loop_index = 0;  // index where the drift distance restarts
   struct Loop {
     int32_t q = 0, m = 0;  // query, match indices
     Eigen::Matrix3d correction = Eigen::Matrix3d::Identity();
@@ -281,8 +264,6 @@ struct SearchArea::Impl {
   };
   Hit CastRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, int32_t eligible,
               size_t* cells) const;
-  void CollectNearSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double margin,
-                          int32_t eligible, std::vector<int32_t>* out, size_t* cells) const;
   void CollectNearPoint(const Eigen::Vector2d& x, double r, int32_t eligible,
                         std::vector<int32_t>* out, size_t* cells) const;
 
@@ -302,8 +283,6 @@ struct SearchArea::Impl {
   };
   PaperRange PaperIndexRange(const Eigen::Vector2d& qt, const Eigen::Vector2d& dir, const Hit& hit,
                              int32_t eligible, SearchAreaResult* result) const;
-  // Drift widening of an index range: keyframes within `margin` path length of its ends.
-  void WidenByPath(double margin, int32_t eligible, int32_t* lo, int32_t* hi) const;
   // The uncertainty area (options.drift_rate) of query t: appends its distinct keyframes to *out.
   void CollectUncertain(int32_t t, int32_t eligible, std::vector<int32_t>* out,
                         size_t* cells) const;
@@ -426,20 +405,6 @@ SearchArea::Impl::PaperRange SearchArea::Impl::PaperIndexRange(const Eigen::Vect
   }
   result->wedge_side = r.side;
   return r;
-}
-
-void SearchArea::Impl::WidenByPath(double margin, int32_t eligible, int32_t* lo,
-                                   int32_t* hi) const {
-  if (margin <= 0.0) return;
-  const double lo_len = path_length[*lo] - margin;
-  *lo = static_cast<int32_t>(
-      std::lower_bound(path_length.begin(), path_length.begin() + *lo, lo_len) -
-      path_length.begin());
-  const double hi_len = path_length[*hi] + margin;
-  *hi = static_cast<int32_t>(
-            std::upper_bound(path_length.begin() + *hi, path_length.begin() + eligible, hi_len) -
-            path_length.begin()) -
-        1;
 }
 
 void SearchArea::Impl::FitPlane() {
@@ -598,29 +563,6 @@ void SearchArea::Impl::CollectNearPoint(const Eigen::Vector2d& x, double r, int3
   }
 }
 
-void SearchArea::Impl::CollectNearSegment(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                                          double margin, int32_t eligible,
-                                          std::vector<int32_t>* out, size_t* cells) const {
-  const double cs = grid.cell_size();
-  const int64_t x0 = std::max(grid.Coord(std::min(a.x(), b.x()) - margin), grid.MinX());
-  const int64_t x1 = std::min(grid.Coord(std::max(a.x(), b.x()) + margin), grid.MaxX());
-  const int64_t y0 = std::max(grid.Coord(std::min(a.y(), b.y()) - margin), grid.MinY());
-  const int64_t y1 = std::min(grid.Coord(std::max(a.y(), b.y()) + margin), grid.MaxY());
-  const double half_diagonal = 0.7072 * cs;
-  for (int64_t ix = x0; ix <= x1; ++ix) {
-    for (int64_t iy = y0; iy <= y1; ++iy) {
-      const Eigen::Vector2d centre((ix + 0.5) * cs, (iy + 0.5) * cs);
-      if (PointSegmentDistance(centre, a, b) > margin + half_diagonal) continue;
-      ++*cells;
-      const Grid::Cell* cell = grid.Find(ix, iy);
-      if (cell == nullptr) continue;
-      for (int32_t k : cell->keyframes) {
-        if (k < eligible && PointSegmentDistance(projected[k], a, b) <= margin) out->push_back(k);
-      }
-    }
-  }
-}
-
 SearchArea::SearchArea(SearchAreaOptions options) : impl_(std::make_unique<Impl>()) {
   options.Check();
   impl_->options = std::move(options);
@@ -686,7 +628,6 @@ void SearchArea::OnLoopAccepted(int64_t query_id, int64_t match_id,
   SL_CHECK_MSG(q != impl_->index_of.end(), "OnLoopAccepted: unknown query keyframe {}", query_id);
   SL_CHECK_MSG(impl_->index_of.count(match_id) == 1, "OnLoopAccepted: unknown match keyframe {}",
                match_id);
-  impl_->loop_index = std::max(impl_->loop_index, q->second);
   if (impl_->options.drift_loops > 0) {
     impl_->loops.push_back({q->second, impl_->index_of.at(match_id), raw_correction});
     if (impl_->loops.size() > static_cast<size_t>(impl_->options.drift_loops))
@@ -705,10 +646,6 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   result.strategy = o.strategy;
   result.plane = m.plane;
   result.position = m.projected[t];
-  result.distance_since_loop = std::max(0.0, m.path_length[t] - m.path_length[m.loop_index]);
-  const double margin =
-      o.strategy == SearchStrategy::kGlobal ? 0.0 : o.drift_tolerance * result.distance_since_loop;
-  result.drift_margin = margin;
   const int32_t eligible = std::max<int32_t>(0, t - o.exclude_recent);  // indices < eligible
   std::vector<int32_t> selected;
   auto finish = [&]() {
@@ -736,7 +673,7 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
     return result;
   }
   if (o.strategy == SearchStrategy::kRadius) {
-    const double r = o.radius + margin;
+    const double r = o.radius;
     std::vector<int32_t> near;
     m.CollectNearPoint(m.projected[t], r, eligible, &near, &result.cells_visited);
     for (int32_t k : near) {
@@ -757,7 +694,6 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   result.direction = dir;
   const Impl::Hit hit = m.CastMotionRay(qt, dir, eligible, &result.cells_visited);
   Impl::PaperRange range = m.PaperIndexRange(qt, dir, hit, eligible, &result);
-  m.WidenByPath(margin, eligible, &range.lo, &range.hi);
   const auto [lo, hi, start, end, side] = range;
   result.range_first = m.ids[lo];
   result.range_last = m.ids[hi];
@@ -773,14 +709,7 @@ SearchAreaResult SearchArea::Query(int64_t keyframe_id) const {
   const double alpha = o.alpha_deg * kPi / 180.0;
   for (int32_t k = lo; k <= hi; ++k) {
     const Eigen::Vector2d w = m.projected[k] - qt;
-    if (InWedge(w, dir, alpha, side) ||
-        (margin > 0.0 && WedgeDistance(w, dir, alpha, side) <= margin)) {
-      selected.push_back(k);
-    }
-  }
-  // Drift widening around the ray: keyframes within `margin` of the segment x'_t -> p.
-  if (margin > 0.0) {
-    m.CollectNearSegment(qt, *result.p, margin, eligible, &selected, &result.cells_visited);
+    if (InWedge(w, dir, alpha, side)) selected.push_back(k);
   }
   return finish();
 }

@@ -55,7 +55,7 @@ TEST(Config, AppliesKnownKeys) {
 TEST(Config, RoundTripsThroughJson) {
   PipelineOptions a;
   a.detector.features.max_features = 23;
-  a.detector.search.drift_tolerance = 0.03;
+  a.detector.search.drift_rate = 0.03;
   a.optimizer.rejection = OutlierRejection::kNone;
   a.optimizer.loop_weight_rounds = 1;
   a.optimizer.num_threads = 2;

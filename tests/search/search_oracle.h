@@ -37,27 +37,19 @@ inline double Intersect(const Eigen::Vector2d& origin, const Eigen::Vector2d& di
   if (s < 0.0 || l < 0.0 || (!half_line && l > 1.0)) return std::numeric_limits<double>::infinity();
   return s;
 }
-inline double DistToRay(const Eigen::Vector2d& w, const Eigen::Vector2d& dir) {
-  return (w - std::max(0.0, w.dot(dir)) * dir).norm();
-}
 inline bool InWedge(const Eigen::Vector2d& w, const Eigen::Vector2d& dir, double alpha, int side) {
   if (w.squaredNorm() == 0.0) return true;
   const double theta = std::atan2(Cross(dir, w), dir.dot(w));
   if (side == 0) return std::abs(theta) <= alpha + 1e-9;
   return side * theta >= -1e-9 && side * theta <= alpha + 1e-9;
 }
-inline Eigen::Vector2d Rot(const Eigen::Vector2d& d, double a) {
-  return {std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y()};
-}
 }  // namespace oracle_detail
 
 // positions[0..t] are the keyframes added so far (at least up to t); `plane` the frame the
-// SearchArea used; `loop_index` the index of the last accepted loop query (0 if none); `loops`
-// every accepted loop (query, match index) in order (the uncertainty area reads the last
-// o.drift_loops).
+// SearchArea used; `loops` every accepted loop (query, match index) in order (the uncertainty area
+// reads the last o.drift_loops).
 inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& positions,
                                          const PlaneFrame& plane, const SearchAreaOptions& o, int t,
-                                         int loop_index,
                                          const std::vector<std::pair<int, int>>& loops = {}) {
   using namespace oracle_detail;
   const double inf = std::numeric_limits<double>::infinity();
@@ -68,8 +60,6 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
     q.push_back(plane.Project(positions[k]));
     L.push_back(k == 0 ? 0.0 : L.back() + (positions[k] - positions[k - 1]).norm());
   }
-  const double travelled = std::max(0.0, L[t] - L[std::min(loop_index, t)]);
-  const double margin = o.strategy == SearchStrategy::kGlobal ? 0.0 : o.drift_tolerance * travelled;
   const int E = std::max(0, t - o.exclude_recent);
   if (E <= 0) return ans;
   auto done = [&](std::vector<int> c) {
@@ -118,7 +108,7 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
     for (int k = 0; k < E; ++k) {
       const double d =
           o.radius_in_plane ? (q[k] - q[t]).norm() : (positions[k] - positions[t]).norm();
-      if (d <= o.radius + margin) c.push_back(k);
+      if (d <= o.radius) c.push_back(k);
     }
     return done(c);
   }
@@ -193,37 +183,15 @@ inline OracleAnswer BruteForceSearchArea(const std::vector<Eigen::Vector3d>& pos
       hi = std::min(E - 1, ans.start + o.fallback_count / 2);
     }
   }
-  // Widen the index range by `margin` of path length.
-  int lo2 = lo, hi2 = hi;
-  for (int k = 0; k <= lo; ++k) {
-    if (L[k] >= L[lo] - margin) {
-      lo2 = k;
-      break;
-    }
-  }
-  for (int k = hi; k < E; ++k) {
-    if (L[k] <= L[hi] + margin) hi2 = k;
-  }
   if (ans.branch == PaperBranch::kNoIntersection) {
-    for (int k = lo2; k <= hi2; ++k) c.push_back(k);
+    for (int k = lo; k <= hi; ++k) c.push_back(k);
     return done(c);
   }
   const double alpha = o.alpha_deg * 3.14159265358979323846 / 180.0;
-  const Eigen::Vector2d b1 = side == 0 ? Rot(dir, -alpha) : dir;
-  const Eigen::Vector2d b2 = Rot(dir, side == 0 ? alpha : side * alpha);
   for (int k = 0; k < E; ++k) {
     const Eigen::Vector2d w = q[k] - q[t];
     bool in = k == ans.start || k == ans.end;
-    if (!in && k >= lo2 && k <= hi2) {
-      in = InWedge(w, dir, alpha, side) ||
-           (margin > 0.0 && std::min(DistToRay(w, b1), DistToRay(w, b2)) <= margin);
-    }
-    if (!in && margin > 0.0) {  // within margin of the segment x'_t -> p
-      const Eigen::Vector2d e = p - q[t];
-      const double l2 = e.squaredNorm();
-      const double u = l2 > 0 ? std::clamp(w.dot(e) / l2, 0.0, 1.0) : 0.0;
-      in = (w - u * e).norm() <= margin;
-    }
+    if (!in && k >= lo && k <= hi) in = InWedge(w, dir, alpha, side);
     if (in) c.push_back(k);
   }
   return done(c);

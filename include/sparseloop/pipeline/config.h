@@ -5,7 +5,7 @@
 // registered once (ConfigKeys() in config.cc): reading, writing, `sparseloop config --dump` and
 // the table of docs/FORMATS.md ("Configuration") all come from that list. Example:
 //   {"detector": {"features": {"max_features": 50, "ranking": "response"},
-//                 "search": {"strategy": "paper", "drift_tolerance": 0.02},
+//                 "search": {"strategy": "paper", "drift_rate": 0.05},
 //                 "check_every": 1},
 //    "optimizer": {"rejection": "pcm", "loop_loss": "cauchy"}}
 #include <filesystem>

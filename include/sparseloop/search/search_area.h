@@ -46,10 +46,6 @@ struct SearchAreaOptions {
   double radius = 10.0;
   // kRadius: measure the radius in the motion plane (true) or in 3D (false).
   bool radius_in_plane = false;
-  // Drift-aware widening (kPaper and kRadius), dimensionless fraction of the path length
-  // travelled since the last accepted loop: margin = drift_tolerance * distance (world units).
-  // 0 disables it. E.g. 0.02 = 2 % of the path length.
-  double drift_tolerance = 0.0;
   // Uncertainty area (strategies kPaper and kRadius), added to the area above. The raw
   // positions of one place seen twice differ by the odometry drift accumulated along the path
   // between the two visits, so every eligible keyframe k with
@@ -152,8 +148,6 @@ struct SearchAreaResult {
   // Index range searched (after drift widening), as keyframe ids; unset when not kPaper/empty.
   std::optional<int64_t> range_first;
   std::optional<int64_t> range_last;
-  double distance_since_loop = 0.0;  // path length since the last accepted loop (world units)
-  double drift_margin = 0.0;         // drift_tolerance * distance_since_loop (world units)
   // Candidates the uncertainty area (drift_rate) added beyond the paper's / radius area, count.
   size_t uncertainty_added = 0;
   size_t cells_visited = 0;  // grid cells inspected (cost diagnostic)
