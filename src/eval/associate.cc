@@ -1,11 +1,10 @@
 #include "sparseloop/eval/associate.h"
 
-#include <algorithm>
 #include <cmath>
-#include <tuple>
 #include <unordered_map>
 
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/time_association.h"
 
 namespace sparseloop {
 
@@ -46,40 +45,17 @@ Association AssociateByIndex(const Trajectory& est, const Trajectory& gt) {
   return out;
 }
 
+// TUM associate.py's one-to-one pairing, by core's rule (core/time_association.h).
 Association AssociateByTime(const Trajectory& est, const Trajectory& gt,
                             const AssociationOptions& options) {
-  // gt indices sorted by time, to find the candidates of each est pose by binary search.
-  std::vector<size_t> gt_order(gt.size());
-  for (size_t j = 0; j < gt.size(); ++j) gt_order[j] = j;
-  std::stable_sort(gt_order.begin(), gt_order.end(), [&](size_t a, size_t b) {
-    return gt.poses[a].timestamp < gt.poses[b].timestamp;
-  });
-  std::vector<double> gt_times(gt.size());
-  for (size_t k = 0; k < gt.size(); ++k) gt_times[k] = gt.poses[gt_order[k]].timestamp;
-
-  // (|dt|, est index, gt index) for every candidate.
-  std::vector<std::tuple<double, size_t, size_t>> candidates;
-  for (size_t i = 0; i < est.size(); ++i) {
-    const double t = est.poses[i].timestamp + options.offset;
-    auto it = std::lower_bound(gt_times.begin(), gt_times.end(), t - options.max_dt);
-    for (; it != gt_times.end() && *it <= t + options.max_dt; ++it) {
-      const double dt = std::abs(*it - t);
-      if (dt <= options.max_dt) {
-        candidates.emplace_back(dt, i, gt_order[static_cast<size_t>(it - gt_times.begin())]);
-      }
-    }
-  }
-  std::sort(candidates.begin(), candidates.end());
-  std::vector<bool> est_used(est.size(), false);
-  std::vector<bool> gt_used(gt.size(), false);
+  std::vector<double> est_times, gt_times;
+  for (const StampedPose& p : est.poses) est_times.push_back(p.timestamp + options.offset);
+  for (const StampedPose& p : gt.poses) gt_times.push_back(p.timestamp);
+  const auto partner = AssociateInTime(est_times, gt_times, options.max_dt, TimePairing::kOneToOne);
   Association out;
-  for (const auto& [dt, i, j] : candidates) {
-    if (est_used[i] || gt_used[j]) continue;
-    est_used[i] = true;
-    gt_used[j] = true;
-    out.pairs.emplace_back(i, j);
+  for (size_t i = 0; i < partner.size(); ++i) {
+    if (partner[i]) out.pairs.emplace_back(i, *partner[i]);
   }
-  std::sort(out.pairs.begin(), out.pairs.end());
   return out;
 }
 

@@ -18,6 +18,7 @@
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/time_association.h"
 #include "sparseloop/io/trajectory_io.h"
 
 namespace sparseloop {
@@ -58,10 +59,14 @@ void DatasetOptions::Check() const {
 }
 
 size_t AttachGtByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt) {
+  std::vector<double> frame_times, gt_times;
+  for (const auto& f : frames) frame_times.push_back(f.timestamp);
+  for (const auto& p : gt.poses) gt_times.push_back(p.timestamp);
+  const auto rows = AssociateInTime(frame_times, gt_times, max_dt, TimePairing::kNearest);
   size_t attached = 0;
-  for (auto& f : frames) {
-    if (const auto i = NearestPoseInTime(gt, f.timestamp, max_dt)) {
-      f.gt_world_from_cam = gt.poses[*i].world_from_cam;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    if (rows[k]) {
+      frames[k].gt_world_from_cam = gt.poses[*rows[k]].world_from_cam;
       ++attached;
     }
   }

@@ -7,6 +7,7 @@
 
 #include "sparseloop/core/check.h"
 #include "sparseloop/core/logging.h"
+#include "sparseloop/core/time_association.h"
 #include "sparseloop/core/timer.h"
 #include "sparseloop/io/mapped_pixels.h"
 #include "sparseloop/map/map_database.h"
@@ -37,9 +38,10 @@ void PipelineOptions::Check() const {
 namespace {
 
 // The one association of per-frame inputs (raw poses, step covariances) with the dataset's frames:
-// by time (nearest key within max_dt of the frame's timestamp) when the input has timestamps and
-// the dataset is not index-associated (KITTI, images:), else by frame index (key == frame). Keys
-// are sorted. Returns the input row of each frame, or nothing where no row is close enough.
+// by time (core's rule, TimePairing::kNearest: the key nearest the frame's timestamp within
+// max_dt) when the input has timestamps and the dataset is not index-associated (KITTI, images:),
+// else by frame index (key == frame). Returns the input row of each frame, or nothing where no row
+// is close enough.
 bool AssociateByTime(const Dataset& dataset, bool input_has_timestamps) {
   return input_has_timestamps && dataset.kind != "kitti" && dataset.kind != "images";
 }
@@ -47,21 +49,20 @@ bool AssociateByTime(const Dataset& dataset, bool input_has_timestamps) {
 std::vector<std::optional<size_t>> RowsForFrames(const Dataset& dataset,
                                                  const std::vector<double>& keys, bool by_time,
                                                  double max_dt) {
-  std::vector<std::optional<size_t>> rows;
-  rows.reserve(dataset.frames.size());
   if (!by_time) {
     std::unordered_map<int64_t, size_t> by_frame;
     for (size_t i = 0; i < keys.size(); ++i) by_frame[static_cast<int64_t>(keys[i])] = i;
+    std::vector<std::optional<size_t>> rows;
+    rows.reserve(dataset.frames.size());
     for (const auto& f : dataset.frames) {
       const auto it = by_frame.find(f.index);
       rows.push_back(it == by_frame.end() ? std::nullopt : std::optional<size_t>(it->second));
     }
     return rows;
   }
-  for (const auto& f : dataset.frames) {
-    rows.push_back(NearestInTime(keys, f.timestamp, max_dt, [](double k) { return k; }));
-  }
-  return rows;
+  std::vector<double> frame_times;
+  for (const auto& f : dataset.frames) frame_times.push_back(f.timestamp);
+  return AssociateInTime(frame_times, keys, max_dt, TimePairing::kNearest);
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 
 #include "bag/message_convert.h"
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/time_association.h"
 #include "sparseloop/io/atomic_file.h"
 #include "sparseloop/io/output_paths.h"
 #include "sparseloop/io/trajectory_io.h"
@@ -104,22 +105,14 @@ PipelineOptions PipelineOptionsFrom(const NodeParams& params) {
   return p;
 }
 
-// The pose of stamp nearest to `stamp` within `max_dt`, if any: core's NearestInTime rule (the
-// earlier one on a tie), on the map's own O(log n) lookup.
+// The entry whose stamp `stamp` takes within `max_dt`, if any: core's NearestInTime rule, on the
+// map's own O(log n) search.
 template <typename T>
 std::optional<T> Nearest(const std::map<double, T>& by_stamp, double stamp, double max_dt) {
-  auto after = by_stamp.lower_bound(stamp);
-  std::optional<T> best;
-  double best_dt = max_dt;
-  if (after != by_stamp.end() && after->first - stamp <= best_dt) {
-    best_dt = after->first - stamp;
-    best = after->second;
-  }
-  if (after != by_stamp.begin()) {
-    auto before = std::prev(after);
-    if (stamp - before->first <= best_dt) best = before->second;
-  }
-  return best;
+  const auto it = NearestInTime(by_stamp.begin(), by_stamp.lower_bound(stamp), by_stamp.end(),
+                                stamp, max_dt, [](const auto& entry) { return entry.first; });
+  if (it == by_stamp.end()) return std::nullopt;
+  return it->second;
 }
 
 // A raw pose and its message's covariance (all zero: none).

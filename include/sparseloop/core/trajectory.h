@@ -1,7 +1,5 @@
 #pragma once
 // A camera trajectory as read from or written to a file.
-#include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <iterator>
 #include <optional>
@@ -9,6 +7,7 @@
 #include <vector>
 
 #include "sparseloop/core/rigid3.h"
+#include "sparseloop/core/time_association.h"
 
 namespace sparseloop {
 
@@ -43,29 +42,8 @@ struct Trajectory {
   std::vector<double> CumulativeDistances() const;
 };
 
-// The one nearest-timestamp lookup (raw poses and step covariances to frames, GT to frames, GT of
-// detected loops): the element of `sorted` (ascending by stamp_of) whose stamp is nearest to t,
-// the earlier one on a tie, if it is within max_dt. `eval`'s Associate is the other rule on
-// purpose (TUM associate.py: greedy and one-to-one).
-template <typename Range, typename StampOf>
-std::optional<size_t> NearestInTime(const Range& sorted, double t, double max_dt,
-                                    StampOf stamp_of) {
-  const auto begin = std::begin(sorted), end = std::end(sorted);
-  const auto after =
-      std::lower_bound(begin, end, t, [&](const auto& e, double v) { return stamp_of(e) < v; });
-  auto best = end;
-  if (after != end) best = after;
-  if (after != begin) {
-    const auto before = std::prev(after);
-    if (best == end || std::abs(stamp_of(*before) - t) <= std::abs(stamp_of(*best) - t)) {
-      best = before;
-    }
-  }
-  if (best == end || !(std::abs(stamp_of(*best) - t) <= max_dt)) return std::nullopt;
-  return static_cast<size_t>(std::distance(begin, best));
-}
-
-// NearestInTime over a trajectory's poses (sorted by timestamp, as the readers guarantee).
+// NearestInTime (core/time_association.h) over a trajectory's poses (sorted by timestamp, as the
+// readers guarantee).
 inline std::optional<size_t> NearestPoseInTime(const Trajectory& trajectory, double t,
                                                double max_dt) {
   return NearestInTime(trajectory.poses, t, max_dt,

@@ -1,12 +1,12 @@
 #pragma once
 // Association of an estimated trajectory with ground truth.
 //
-// kTimestamp (TUM associate.py semantics): every (est i, gt j) with
-//   |(est.t_i + offset) - gt.t_j| <= max_dt
-// is a candidate; candidates are taken greedily by increasing |dt| (ties: lower est index, then
-// lower gt index) and each est pose and each gt pose is used at most once. evo's
-// associate_trajectories takes the nearest stamp without the uniqueness constraint; the two agree
-// whenever max_dt is below half the smaller sampling period (the usual case).
+// kTimestamp: TimePairing::kOneToOne of core/time_association.h (TUM associate.py, with
+//   |(est.t_i + offset) - gt.t_j| <= max_dt): candidates taken greedily by increasing |dt| (ties:
+//   lower est index, then the earlier gt pose), each est pose and each gt pose at most once. A
+//   GT pose is never counted twice. evo's associate_trajectories takes the nearest stamp for each
+//   pose of the shorter trajectory without the uniqueness rule (kNearest); the two agree whenever
+//   max_dt is below half the smaller sampling period (the usual case).
 // kIndex: est pose with StampedPose::frame == f is paired with the gt pose with frame f.
 //
 // Pairs are returned sorted by est index (then gt index is increasing too for monotonic inputs).

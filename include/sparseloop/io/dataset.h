@@ -105,8 +105,8 @@ struct DatasetOptions {
 // spec = "<kind>:<DIR>".
 Dataset OpenDataset(const std::string& spec, const DatasetOptions& options = {});
 
-// Frame gets the GT pose nearest in time when |dt| <= max_dt (gt timestamps increasing); returns
-// how many frames got one. The one timestamp association of the dataset loaders.
+// Each frame gets the GT pose nearest in time within max_dt (core/time_association.h,
+// TimePairing::kNearest); returns how many frames got one. The dataset loaders' GT association.
 size_t AttachGtByTime(std::vector<DatasetFrame>& frames, const Trajectory& gt, double max_dt);
 
 // Width and height of a PNG image from its IHDR chunk (no decoding). FileError when the file is
