@@ -585,8 +585,8 @@ the path of a JSON config file. preset: a shipped preset applied before config (
           py::gil_scoped_release release;
           EvaluationOptions options;
           options.alignment = ParseAlignment(alignment);
-          j = ToJson(
-              EvaluateTrajectory(ReadTrajectory(gt_path), ReadTrajectory(est_path), options));
+          const Trajectory gt = ReadTrajectory(gt_path), est = ReadTrajectory(est_path);
+          j = ToJson(EvaluateTrajectory(gt, est, options), gt, est);
         }
         return ToPython(j);
       },

@@ -218,6 +218,10 @@ def test_eval_dict_has_known_values(tmp_path):
                                         alignment="none")
     assert ev["ate_rmse_m"] == pytest.approx(0.1, abs=1e-9)  # every position is 0.1 m off
     assert ev["ate"]["max"] == pytest.approx(0.1, abs=1e-9)
+    # Pose by pose, as `sparseloop eval --json` writes it: every pair and the aligned estimate.
+    assert ev["associated"]["gt_index"] == list(range(n))
+    assert ev["associated"]["ate_m"] == pytest.approx([0.1] * n, abs=1e-9)
+    assert np.asarray(ev["aligned_positions"]) == pytest.approx(est[:, :3, 3], abs=1e-9)
     with pytest.raises(ValueError):
         sparseloop.evaluate_trajectory(str(tmp_path / "gt.txt"), str(tmp_path / "gt.txt"),
                                        alignment="bogus")

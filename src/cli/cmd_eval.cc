@@ -226,14 +226,15 @@ std::optional<LoopScores> ScoreLoops(const EvalFlags& f, const Trajectory& gt,
   return scores;
 }
 
-void WriteEvalJson(const EvalFlags& f, const TrajectoryEvaluation& e,
+void WriteEvalJson(const EvalFlags& f, const Trajectory& gt, const Trajectory& est,
+                   const TrajectoryEvaluation& e,
                    const std::optional<std::vector<LoopPair>>& gt_loops,
                    const std::optional<LoopScores>& loops,
                    const std::optional<AreaCoverage>& coverage) {
   const auto path_or_null = [](const std::string& p) {
     return p.empty() ? nlohmann::json(nullptr) : nlohmann::json(p);
   };
-  nlohmann::json j = f.trajectories() ? ToJson(e) : nlohmann::json::object();
+  nlohmann::json j = f.trajectories() ? ToJson(e, gt, est) : nlohmann::json::object();
   j["gt_file"] = path_or_null(f.gt_path);
   j["est_file"] = path_or_null(f.est_path);
   if (f.trajectories()) j["association"] = ToString(f.options.association.method);
@@ -320,7 +321,7 @@ int RunEval(int argc, char** argv) {
         "candidates\n",
         coverage->covered, coverage->queries, Num(coverage->fraction), coverage->mean_candidates);
   }
-  if (!f.json_path.empty()) WriteEvalJson(f, e, gt_loops, loops, coverage);
+  if (!f.json_path.empty()) WriteEvalJson(f, gt, est, e, gt_loops, loops, coverage);
   return 0;
 }
 

@@ -1,5 +1,7 @@
 #include "sparseloop/eval/json.h"
 
+#include "sparseloop/core/check.h"
+
 namespace sparseloop {
 
 namespace {
@@ -111,6 +113,34 @@ nlohmann::json ToJson(const TrajectoryEvaluation& e) {
   j["kitti_t_err_pct"] = e.kitti ? OrNull(e.kitti->t_err_pct) : nlohmann::json(nullptr);
   j["kitti_r_err_deg_per_100m"] =
       e.kitti ? OrNull(e.kitti->r_err_deg_per_100m) : nlohmann::json(nullptr);
+  return j;
+}
+
+nlohmann::json ToJson(const TrajectoryEvaluation& e, const Trajectory& gt, const Trajectory& est) {
+  SL_CHECK_MSG(gt.size() == e.num_gt_poses && est.size() == e.num_est_poses,
+               "the trajectories ({} GT, {} estimate poses) are not the evaluated ones ({}, {})",
+               gt.size(), est.size(), e.num_gt_poses, e.num_est_poses);
+  nlohmann::json j = ToJson(e);
+  nlohmann::json est_index = nlohmann::json::array(), gt_index = nlohmann::json::array();
+  nlohmann::json est_time = nlohmann::json::array(), gt_time = nlohmann::json::array();
+  nlohmann::json est_frame = nlohmann::json::array(), gt_frame = nlohmann::json::array();
+  for (const auto& [i, g] : e.association.pairs) {
+    est_index.push_back(i);
+    gt_index.push_back(g);
+    est_time.push_back(est.poses[i].timestamp);
+    gt_time.push_back(gt.poses[g].timestamp);
+    est_frame.push_back(est.poses[i].frame);
+    gt_frame.push_back(gt.poses[g].frame);
+  }
+  j["associated"] = {{"est_index", est_index}, {"gt_index", gt_index},   {"est_time", est_time},
+                     {"gt_time", gt_time},     {"est_frame", est_frame}, {"gt_frame", gt_frame},
+                     {"ate_m", e.ate.errors}};
+  nlohmann::json aligned = nlohmann::json::array();
+  for (const StampedPose& p : est.poses) {
+    const Eigen::Vector3d x = e.alignment.gt_from_est * p.world_from_cam.translation;
+    aligned.push_back({x.x(), x.y(), x.z()});
+  }
+  j["aligned_positions"] = aligned;
   return j;
 }
 

@@ -1,4 +1,5 @@
 // End-to-end tests of `sparseloop eval`.
+#include <cmath>
 #include <fstream>
 #include <string>
 
@@ -207,6 +208,50 @@ TEST(CliEval, ANonUtf8FileNameStillGivesTheJson) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = ReadJson(json);
   EXPECT_NE(j.dump().find("gt\xEF\xBF\xBD.txt"), std::string::npos) << j.dump();
+}
+
+// The JSON carries the evaluation pose by pose: the associated pairs (rows, stamps, frames, ATE)
+// and every estimate position as the alignment maps it into the GT frame, associated or not, so a
+// plot needs no alignment or association of its own (scripts/report.py draws these).
+TEST(CliEval, JsonCarriesTheAssociatedPairsAndTheAlignedEstimate) {
+  const auto dir = FixtureDir();
+  {
+    // GT: a curve at 10 Hz. Estimate: the same positions at half the scale, shifted by (1, 2, 3)
+    // and stamped 5 ms later, then one pose 50 ms after the last (no GT within --max-dt 0.02).
+    std::ofstream gt(dir / "gt.txt"), est(dir / "est.txt");
+    for (int i = 0; i < 12; ++i) {
+      const double x = i, y = std::sin(i), z = 0.1 * i * i;
+      gt << fmt::format("{} {} {} {} 0 0 0 1\n", 0.1 * i, x, y, z);
+      est << fmt::format("{} {} {} {} 0 0 0 1\n", 0.1 * i + 0.005, 0.5 * x + 1, 0.5 * y + 2,
+                         0.5 * z + 3);
+    }
+    est << fmt::format("{} 7 7 7 0 0 0 1\n", 1.1 + 0.05);
+  }
+  const auto json = dir / "m.json";
+  const auto r = RunCli({"eval", "--gt", (dir / "gt.txt").string(), "--est",
+                         (dir / "est.txt").string(), "--json", json.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = ReadJson(json);
+  EXPECT_NEAR(j["alignment"]["scale"].get<double>(), 2.0, 1e-9);
+  const nlohmann::json& a = j["associated"];
+  ASSERT_EQ(a["est_index"].size(), 12u) << a.dump();
+  const nlohmann::json& aligned = j["aligned_positions"];
+  ASSERT_EQ(aligned.size(), 13u);
+  for (size_t k = 0; k < 12; ++k) {
+    EXPECT_EQ(a["est_index"][k].get<size_t>(), k);
+    EXPECT_EQ(a["gt_index"][k].get<size_t>(), k);
+    EXPECT_EQ(a["gt_frame"][k].get<int64_t>(), static_cast<int64_t>(k));
+    EXPECT_NEAR(a["gt_time"][k].get<double>(), 0.1 * k, 1e-12);
+    EXPECT_NEAR(a["est_time"][k].get<double>(), 0.1 * k + 0.005, 1e-12);
+    EXPECT_NEAR(a["ate_m"][k].get<double>(), 0.0, 1e-9);
+    const double i = static_cast<double>(k);
+    const double gt_position[3] = {i, std::sin(i), 0.1 * i * i};
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(aligned[k][c].get<double>(), gt_position[c], 1e-9);
+  }
+  // The unassociated pose, mapped too: gt = 2 (est - (1, 2, 3)).
+  EXPECT_NEAR(aligned[12][0].get<double>(), 12.0, 1e-9);
+  EXPECT_NEAR(aligned[12][1].get<double>(), 10.0, 1e-9);
+  EXPECT_NEAR(aligned[12][2].get<double>(), 8.0, 1e-9);
 }
 
 // No estimate pose pairs with a ground-truth pose: exit 2 naming both files, not an empty table.

@@ -18,6 +18,14 @@ nlohmann::json ToJson(const LoopPrResult& loops);
 // "alignment", "ate", "rpe", "kitti" objects. Loop keys (loop_*) are added by the caller with
 // AddLoopKeys.
 nlohmann::json ToJson(const TrajectoryEvaluation& evaluation);
+// What `sparseloop eval --json` writes for a trajectory (and Python's evaluate_trajectory):
+// ToJson(evaluation) plus the evaluation pose by pose, for plots that show what was measured:
+// "associated" {est_index, gt_index (rows of the files), est_time, gt_time, est_frame, gt_frame,
+// ate_m}: one entry per associated pair, in estimate order; "aligned_positions": every estimate
+// pose's position mapped by alignment.gt_from_est, in file order. `gt` and `est` are the
+// trajectories `evaluation` was computed from (std::invalid_argument when their sizes differ).
+nlohmann::json ToJson(const TrajectoryEvaluation& evaluation, const Trajectory& gt,
+                      const Trajectory& est);
 // Adds loop_precision, loop_recall, loop_recall_at_100p, loop_true_positives,
 // loop_false_positives and a nested "loops" object (or nulls when `loops` is nullptr).
 void AddLoopKeys(nlohmann::json& out, const LoopPrResult* loops);
