@@ -4,10 +4,11 @@
 Usage: report.py DIR [--false-loop-distance METRES] [--sparseloop BIN]
   --false-loop-distance  re-score the loops at this GT distance (default: the run's own verdicts,
                          loops.csv "correct", at summary.json's gt_loop_distance)
-  --sparseloop           the binary whose `eval` scores loops (default: $SPARSELOOP_BIN, then
-                         sparseloop on PATH); needed only to re-score or for a P/R curve from
-                         gt_loops.txt. Loops are never scored here: `sparseloop eval` is the one
-                         definition (docs/METRICS.md).
+  --sparseloop           the binary whose `eval` aligns the trajectories with GT and scores loops
+                         (default: $SPARSELOOP_BIN, then sparseloop on PATH); needed to align, to
+                         re-score or for a P/R curve from gt_loops.txt. Nothing is aligned,
+                         associated or scored here: `sparseloop eval` is the one definition
+                         (docs/METRICS.md).
 
 Reads (every file optional except at least one trajectory):
   poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
@@ -23,8 +24,9 @@ Reads (every file optional except at least one trajectory):
   timings.csv                  per-keyframe timings, one column per stage (ms)
 Writes DIR/report.html, one self-contained file (the plots embedded as base64 PNG data URIs), and
 DIR/report_*.png (the same plots).
-Trajectories are associated by frame index (KITTI) or nearest timestamp (TUM); raw and
-corrected are Sim(3)-aligned to GT (Umeyama) for plotting, as monocular scale is arbitrary.
+Raw and corrected are drawn as `sparseloop eval --align sim3` aligned them to GT (monocular scale
+is arbitrary), with the position error of each pose it associated (its "aligned_positions" and
+"associated" JSON keys).
 """
 import argparse
 import base64
@@ -67,40 +69,6 @@ def read_trajectory(path):
     if n == 4:
         return a[:, 0].astype(int), a[:, 1:4], "index"
     raise ValueError(f"{path}: cannot tell the format from {n} columns")
-
-
-def associate(keys_a, kind_a, keys_b, kind_b, max_dt=0.02):
-    """Index pairs (ia, ib) matching by frame index, or by nearest time within max_dt."""
-    pairs = []
-    if kind_a == "index" and kind_b == "index":
-        lut = {int(k): i for i, k in enumerate(keys_b)}
-        for i, k in enumerate(keys_a):
-            j = lut.get(int(k))
-            if j is not None:
-                pairs.append((i, j))
-    else:
-        kb = np.asarray(keys_b, dtype=float)
-        for i, k in enumerate(keys_a):
-            j = int(np.argmin(np.abs(kb - k)))
-            if abs(kb[j] - k) <= max_dt:
-                pairs.append((i, j))
-    return pairs
-
-
-def umeyama_sim3(src, dst):
-    """s, R, t minimising |dst - (s R src + t)|^2."""
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    xs, xd = src - mu_s, dst - mu_d
-    cov = xd.T @ xs / len(src)
-    u, d, vt = np.linalg.svd(cov)
-    s_mat = np.eye(3)
-    if np.linalg.det(u) * np.linalg.det(vt) < 0:
-        s_mat[2, 2] = -1
-    r = u @ s_mat @ vt
-    var = (xs ** 2).sum() / len(src)
-    scale = np.trace(np.diag(d) @ s_mat) / var if var > 0 else 1.0
-    t = mu_d - scale * r @ mu_s
-    return scale, r, t
 
 
 def top_view_axes(p):
@@ -152,20 +120,32 @@ def find_sparseloop(args):
     return args.sparseloop or os.environ.get("SPARSELOOP_BIN") or shutil.which("sparseloop")
 
 
-def eval_loops(args, loops_csv, flags):
-    """`sparseloop eval --loops LOOPS FLAGS --json`: its JSON (the loop keys of docs/METRICS.md)."""
+def run_eval(args, flags, what):
+    """`sparseloop eval FLAGS --json`: its JSON (the keys of docs/METRICS.md)."""
     exe = find_sparseloop(args)
     if not exe:
-        raise ReportError("scoring loops needs the sparseloop binary (its `eval`): pass "
+        raise ReportError(f"{what} needs the sparseloop binary (its `eval`): pass "
                           "--sparseloop BIN or set SPARSELOOP_BIN")
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "eval.json")
-        done = subprocess.run([exe, "eval", "--loops", loops_csv, *flags, "--json", out],
+        done = subprocess.run([exe, "eval", *flags, "--json", out],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if done.returncode != 0:
-            raise ReportError(f"sparseloop eval on {loops_csv} failed: {done.stderr.strip()}")
+            raise ReportError(f"sparseloop eval {' '.join(flags)} failed: {done.stderr.strip()}")
         with open(out) as f:
             return json.load(f)
+
+
+def eval_loops(args, loops_csv, flags):
+    """`sparseloop eval --loops LOOPS FLAGS --json`: its loop keys."""
+    return run_eval(args, ["--loops", loops_csv, *flags], "scoring loops")
+
+
+def align_to_gt(args, gt_path, est_path):
+    """`sparseloop eval --gt GT --est EST --align sim3 --json`: the estimate as eval aligned it
+    ("aligned_positions", every pose) and its associated pairs with their errors ("associated")."""
+    return run_eval(args, ["--gt", gt_path, "--est", est_path, "--align", "sim3"],
+                    "aligning trajectories with GT")
 
 
 def main():
@@ -213,28 +193,31 @@ def make_report(args):
               file=sys.stderr)
         return 2
 
-    # Align raw / corrected to GT by Sim(3) on associated positions.
+    # Raw / corrected as `sparseloop eval --align sim3` associated and aligned them with GT.
     aligned, errors = {}, {}
     gt = traj.get("GT")
     for label in ("raw", "corrected"):
         if label not in traj:
             continue
-        keys, pos, kind, _ = traj[label]
+        keys, pos, _, name = traj[label]
+        aligned[label] = (keys, pos)  # as it is, unless eval aligns it
         if gt is None:
-            aligned[label] = (keys, pos)
             continue
-        pairs = associate(keys, kind, gt[0], gt[2])
-        if len(pairs) < 3:
+        try:
+            e = align_to_gt(args, fp(gt[3]), fp(name))
+        except ReportError as err:
+            notes.append(f"{label}: not aligned to GT ({err})")
+            continue
+        if e["alignment"]["status"] == "too_few_points":
             notes.append(f"{label}: fewer than 3 poses associate with GT; not aligned")
-            aligned[label] = (keys, pos)
             continue
-        ia = np.array([p[0] for p in pairs])
-        ib = np.array([p[1] for p in pairs])
-        s, r, t = umeyama_sim3(pos[ia], gt[1][ib])
-        pa = (s * (r @ pos.T)).T + t
+        pa = np.asarray(e["aligned_positions"], dtype=float).reshape(-1, 3)
+        if len(pa) != len(pos):
+            raise ReportError(f"{fp(name)}: sparseloop eval read {len(pa)} poses, the report "
+                              f"{len(pos)}")
         aligned[label] = (keys, pa)
-        err = np.linalg.norm(pa[ia] - gt[1][ib], axis=1)
-        errors[label] = (gt[0][ib] if gt[2] == "index" else ib, err)
+        pairs = e["associated"]
+        errors[label] = (np.asarray(pairs["gt_frame"]), np.asarray(pairs["ate_m"], dtype=float))
 
     ref = gt[1] if gt is not None else next(iter(aligned.values()))[1]
     ax_idx = top_view_axes(ref)
@@ -254,7 +237,7 @@ def make_report(args):
         ax.plot(gt[1][:, ax_idx[0]], gt[1][:, ax_idx[1]], "-", color="k", lw=1.2, label="GT")
     for label, (keys, p) in aligned.items():
         ax.plot(p[:, ax_idx[0]], p[:, ax_idx[1]], "-", color=colours[label], lw=1.0,
-                label=f"{label} (Sim3-aligned)" if gt is not None else label)
+                label=f"{label} (Sim3-aligned)" if label in errors else label)
     n_true = n_false = n_rejected = 0
     if loops:
         base_label = "corrected" if "corrected" in aligned else ("GT" if gt is not None else None)

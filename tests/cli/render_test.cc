@@ -387,6 +387,13 @@ TEST(ReportCli, AgreesWithTheRunAndIsSelfContained) {
                                   summary["accepted_loops_false"].get<int>())),
             std::string::npos)
       << "the run's threshold (35), not the report's own 10";
+  // The error plot is eval's alignment and association (the report has none of its own).
+  for (const char* label : {"raw", "corrected"}) {
+    EXPECT_NE(page.find(fmt::format("{}: RMSE {:.2f} m", label,
+                                    summary["eval"][label]["ate_rmse_m"].get<double>())),
+              std::string::npos)
+        << label;
+  }
   EXPECT_NE(page.find("data:image/png;base64,"), std::string::npos);
   EXPECT_EQ(page.find("src=\"report_"), std::string::npos) << "a linked image";
 
