@@ -33,12 +33,11 @@ int RunConvert(int argc, char** argv) {
   const TrajectoryFormat in_format = ParseTrajectoryFormat(from);
   const TrajectoryFormat out_format = ParseTrajectoryFormat(to);
   SL_CHECK_MSG(out_format != TrajectoryFormat::kAuto, "--to needs an explicit format, not 'auto'");
-  const TrajectoryFormat detected =
-      in_format == TrajectoryFormat::kAuto ? DetectTrajectoryFormat(in) : in_format;
-  const Trajectory traj = ReadTrajectory(in, detected, read_options);
-  WriteTrajectory(out, traj, out_format);
-  std::cout << fmt::format("wrote {} poses ({} -> {}) to {}\n", traj.size(), ToString(detected),
-                           ToString(out_format), out);
+  // One read (detection included): --in may be a pipe or /dev/stdin.
+  const TrajectoryFile read = ReadTrajectoryFile(in, in_format, read_options);
+  WriteTrajectory(out, read.trajectory, out_format);
+  std::cout << fmt::format("wrote {} poses ({} -> {}) to {}\n", read.trajectory.size(),
+                           ToString(read.format), ToString(out_format), out);
   return 0;
 }
 

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <sstream>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -27,10 +26,17 @@ TextFile::TextFile(const std::filesystem::path& path) : name_(path.string()) {
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(name_, 0, "a readable file", std::strerror(errno));
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
+  // Read once, in chunks: a FIFO or /dev/stdin is read as a file is, and a stream that does not
+  // end stops at the bound instead of filling the memory.
+  std::vector<char> chunk(size_t{1} << 16);
+  while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
+    content_.append(chunk.data(), static_cast<size_t>(in.gcount()));
+    if (content_.size() > kMaxTextFileBytes) {
+      throw FileError(name_, 0, fmt::format("a text file of at most {} bytes", kMaxTextFileBytes),
+                      "more (a stream that does not end?)");
+    }
+  }
   if (in.bad()) throw FileError(name_, 0, "a readable file", "read error");
-  content_ = buffer.str();
   int number = 1;
   for (const std::string_view line : SplitLines(content_)) lines_.push_back({number++, line});
 }

@@ -1,6 +1,7 @@
 #pragma once
 // Private helpers shared by the io readers: line splitting and strict number parsing that throw
 // FileError with the file name and the 1-based line number.
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -14,8 +15,13 @@ struct TextLine {
   std::string_view text;  // without the trailing '\r' / '\n'
 };
 
-// A whole text file in memory with its lines. Throws FileError(path, 0, ...) when the file is
-// missing, a directory, or unreadable.
+// Largest text file read (1 GiB): beyond any trajectory or list the readers take (100,000 TUM poses
+// are about 10 MB).
+inline constexpr size_t kMaxTextFileBytes = size_t{1} << 30;
+
+// A whole text file in memory with its lines, read once (a FIFO or /dev/stdin works). Throws
+// FileError(path, 0, ...) when the file is missing, a directory, unreadable or larger than
+// kMaxTextFileBytes.
 class TextFile {
  public:
   explicit TextFile(const std::filesystem::path& path);

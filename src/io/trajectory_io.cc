@@ -377,6 +377,11 @@ Trajectory ReadTrajectory(const std::filesystem::path& path, TrajectoryFormat fo
 
 Trajectory ReadTrajectory(const std::filesystem::path& path, TrajectoryFormat format,
                           const TrajectoryReadOptions& options) {
+  return ReadTrajectoryFile(path, format, options).trajectory;
+}
+
+TrajectoryFile ReadTrajectoryFile(const std::filesystem::path& path, TrajectoryFormat format,
+                                  const TrajectoryReadOptions& options) {
   options.Check();
   const TextFile file(path);
   if (format == TrajectoryFormat::kAuto) {
@@ -385,13 +390,13 @@ Trajectory ReadTrajectory(const std::filesystem::path& path, TrajectoryFormat fo
   }
   switch (format) {
     case TrajectoryFormat::kTum:
-      return ReadTum(file, options);
+      return {ReadTum(file, options), format};
     case TrajectoryFormat::kKitti:
-      return ReadKitti(file, options);
+      return {ReadKitti(file, options), format};
     case TrajectoryFormat::kEuroc:
-      return ReadEuroc(file, options);
+      return {ReadEuroc(file, options), format};
     case TrajectoryFormat::kPositions:
-      return ReadPositions(file, options);
+      return {ReadPositions(file, options), format};
     case TrajectoryFormat::kAuto:
       break;
   }

@@ -1,4 +1,8 @@
 // End-to-end tests of `sparseloop convert`.
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -74,6 +78,36 @@ TEST(CliConvert, BadFormatNameAndPositionsToTumExit2) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(ReadTrajectory(dir / "o.txt").poses[1].world_from_cam.translation,
             Eigen::Vector3d(2, 3, 4));
+}
+
+// A shell command line; its exit code (124: `timeout` stopped a command that hung).
+int Shell(const std::string& command) {
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// --in a pipe: the input is read once (format detection and reading share it), so a FIFO and
+// /dev/stdin give the poses; both were read twice (a FIFO hung on the second open, /dev/stdin
+// gave "at least one data line, got none").
+TEST(CliConvert, AFifoOrStdinIsReadOnce) {
+  const auto dir = FilesDir();
+  Write(dir / "in.txt", "0.5 1 2 3 0 0 0 1\n0.6 4 5 6 0 0 0 1\n");
+  const std::string cli = "timeout 60 '" + ConfiguredCliPath().string() + "'";
+  const std::string out = (dir / "out.txt").string();
+  EXPECT_EQ(Shell("cat '" + (dir / "in.txt").string() + "' | " + cli +
+                  " convert --in /dev/stdin --to kitti --out '" + out + "' >/dev/null 2>&1"),
+            0);
+  ASSERT_TRUE(std::filesystem::exists(out));
+  EXPECT_EQ(ReadTrajectory(out).size(), 2u);
+  std::filesystem::remove(out);
+  const std::string fifo = (dir / "fifo").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // The writer in the background: it blocks until convert opens the FIFO.
+  EXPECT_EQ(Shell("(cat '" + (dir / "in.txt").string() + "' > '" + fifo + "' &) ; " + cli +
+                  " convert --in '" + fifo + "' --to kitti --out '" + out + "' >/dev/null 2>&1"),
+            0);
+  ASSERT_TRUE(std::filesystem::exists(out));
+  EXPECT_EQ(ReadTrajectory(out).size(), 2u);
 }
 
 TEST(CliConvert, MissingInputExits2) {

@@ -45,11 +45,22 @@ struct TrajectoryReadOptions {
 
 // Reads a trajectory; `format` kAuto applies DetectTrajectoryFormat, any other value is obeyed.
 // Quaternions within kQuaternionNormTolerance of unit norm and 3x3 blocks within
-// kRotationTolerance of a rotation are normalised / re-orthonormalised.
+// kRotationTolerance of a rotation are normalised / re-orthonormalised. The file is read once
+// (detection included), so a FIFO or /dev/stdin works as a path.
 Trajectory ReadTrajectory(const std::filesystem::path& path,
                           TrajectoryFormat format = TrajectoryFormat::kAuto);
 Trajectory ReadTrajectory(const std::filesystem::path& path, TrajectoryFormat format,
                           const TrajectoryReadOptions& options);
+
+// A trajectory and the format it was read as (kAuto resolved by the detection rule).
+struct TrajectoryFile {
+  Trajectory trajectory;
+  TrajectoryFormat format = TrajectoryFormat::kAuto;
+};
+// ReadTrajectory that also says which format it read: detect and read in one pass over the file,
+// where DetectTrajectoryFormat then ReadTrajectory would read a pipe twice.
+TrajectoryFile ReadTrajectoryFile(const std::filesystem::path& path, TrajectoryFormat format,
+                                  const TrajectoryReadOptions& options = {});
 
 // Writes atomically (WriteFileAtomically). kTum: "%.9f" time, poses with shortest round-trip
 // precision; kKitti: 12 numbers per line (the frame index is not written); kEuroc: CSV with
