@@ -10,7 +10,9 @@ Usage: report.py DIR [--false-loop-distance METRES] [--sparseloop BIN]
                          associated or scored here: `sparseloop eval` is the one definition
                          (docs/METRICS.md).
 
-Reads (every file optional except at least one trajectory):
+Reads (every file optional except at least one trajectory), each as `sparseloop eval` reads text
+files (a UTF-8 byte order mark, LF, CRLF or lone CR line ends; bytes that are not UTF-8 read as
+U+FFFD):
   poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
   poses_raw.txt                raw (drifting) input trajectory
   trajectory.txt               corrected trajectory written by `sparseloop run`
@@ -20,7 +22,8 @@ Reads (every file optional except at least one trajectory):
   gt_loops.txt                 ground-truth loop pairs "i j" (for the P/R curve)
   pr_curve.csv                 precomputed "threshold,precision,recall" (used when present)
   summary.json                 thresholds and counts of the run (gt_loop_distance, loops,
-                               accepted_loops, accepted_loops_false, timing_ms {stage: {median}})
+                               accepted_loops, accepted_loops_false, timing_ms {stage: {median}});
+                               a truncated or invalid file is an error naming the line
   timings.csv                  per-keyframe timings, one column per stage (ms)
 Writes DIR/report.html, one self-contained file (the plots embedded as base64 PNG data URIs), and
 DIR/report_*.png (the same plots).
@@ -35,6 +38,7 @@ import html
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -47,15 +51,79 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def read_text(path):
+    """The text of a file as `sparseloop eval` reads it: a UTF-8 byte order mark is not part of
+    it, and bytes that are not UTF-8 (an image name in another encoding) become U+FFFD."""
+    with open(path, "rb") as f:
+        text = f.read().decode("utf-8", errors="replace")
+    return text[1:] if text.startswith("\ufeff") else text
+
+
+def split_lines(text):
+    r"""The lines of `text` without their ends ("\n", "\r\n" or a lone "\r", as SplitLines in
+    sparseloop/core/text_lines.h); an end at the very end opens no further line."""
+    lines = re.split(r"\r\n|\r|\n", text)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
+def read_csv_rows(path):
+    """[(line number, {column: value})] of a CSV file with a header line, read as `eval` reads
+    loops.csv: blank lines skipped, a quoted field may span lines (RFC 4180)."""
+    lines = split_lines(read_text(path))
+    rows, header, k = [], None, 0
+    while k < len(lines):
+        number, record = k + 1, lines[k]
+        k += 1
+        if not record.strip():
+            continue
+        while record.count('"') % 2 == 1 and k < len(lines):
+            record += "\n" + lines[k]
+            k += 1
+        fields = next(csv.reader([record]))
+        if header is None:
+            header = fields
+            continue
+        if record.startswith("#"):
+            continue
+        if len(fields) != len(header):
+            raise ReportError(f"{path}:{number}: expected {len(header)} columns, got "
+                              f"{len(fields)} (a truncated or foreign file)")
+        rows.append((number, dict(zip(header, fields))))
+    return header or [], rows
+
+
+def read_summary(path):
+    """summary.json as a dict; a truncated or invalid file is a ReportError naming its line."""
+    try:
+        summary = json.loads(read_text(path))
+    except json.JSONDecodeError as e:
+        raise ReportError(f"{path}:{e.lineno}: expected valid JSON (summary.json as `sparseloop "
+                          f"run` / `detect` write it), got '{e.msg}' at column {e.colno}: a "
+                          "truncated or foreign file")
+    if not isinstance(summary, dict):
+        raise ReportError(f"{path}: expected a JSON object (summary.json as `sparseloop run` / "
+                          f"`detect` write it), got {type(summary).__name__}")
+    return summary
+
+
+def summary_number(summary, key, default):
+    """summary.json's number `key` (default when absent); a ReportError when it is not one."""
+    value = summary.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ReportError(f"summary.json: expected a number for \"{key}\", got {value!r}")
+    return value
+
+
 def read_trajectory(path):
     """Returns (keys, positions Nx3, kind) where keys are frame indices or timestamps."""
     rows = []
-    with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if not line or line.startswith("#"):
-                continue
-            rows.append([float(x) for x in line.replace(",", " ").split()])
+    for line in split_lines(read_text(path)):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        rows.append([float(x) for x in line.replace(",", " ").split()])
     if not rows:
         raise ValueError(f"{path}: no data lines")
     n = len(rows[0])
@@ -85,32 +153,23 @@ class ReportError(Exception):
 def read_loops(path):
     """[(query, match, score, accepted, correct)]; accepted / correct are None when unknown.
     Every row must have the header's column count: a truncated file is an error with the line."""
-    loops = []
-    with open(path, newline="") as f:
-        lines = f.read().split("\n")
-    if lines and lines[-1] == "":
-        lines.pop()
-    elif lines:
-        raise ReportError(f"{path}:{len(lines)}: expected a complete line (ending with a newline), "
-                          "got a truncated file")
-    if not lines:
-        return loops
-    header = next(csv.reader([lines[0]]))
+    text = read_text(path)
+    if text and not text.endswith(("\n", "\r")):
+        raise ReportError(f"{path}:{len(split_lines(text))}: expected a complete line (ending "
+                          "with a line end), got a truncated file")
+    header, rows = read_csv_rows(path)
+    if not header:
+        return []
     if "query" not in header or "match" not in header:
         raise ReportError(f"{path}:1: expected a header with query and match columns")
-    for number, line in enumerate(lines[1:], 2):
-        if not line or line.startswith("#"):
-            continue
-        fields = next(csv.reader([line]))
-        if len(fields) != len(header):
-            raise ReportError(f"{path}:{number}: expected {len(header)} columns, got "
-                              f"{len(fields)} (a truncated or foreign file)")
-        row = dict(zip(header, fields))
+    loops = []
+    for number, row in rows:
         try:
             q, m = int(row["query"]), int(row["match"])
+            score = float(row["score"]) if row.get("score") not in (None, "") else float("nan")
         except ValueError:
-            raise ReportError(f"{path}:{number}: expected integer query and match ids")
-        score = float(row["score"]) if row.get("score") not in (None, "") else float("nan")
+            raise ReportError(f"{path}:{number}: expected integer query and match ids and a "
+                              "numeric score")
         flag = lambda k: None if row.get(k) in (None, "") else row[k] == "1"  # noqa: E731
         loops.append((q, m, score, flag("accepted"), flag("correct")))
     return loops
@@ -171,12 +230,11 @@ def make_report(args):
     sections, notes = [], []
     summary = {}
     if os.path.isfile(fp("summary.json")):
-        with open(fp("summary.json")) as f:
-            summary = json.load(f)
+        summary = read_summary(fp("summary.json"))
     # The run's own threshold, so the report agrees with summary.json.
     false_distance = args.false_loop_distance
     if false_distance is None:
-        false_distance = float(summary.get("gt_loop_distance", 10.0))
+        false_distance = float(summary_number(summary, "gt_loop_distance", 10.0))
 
     traj = {}
     for label, names in (("GT", ["poses_gt.txt", "poses.txt"]), ("raw", ["poses_raw.txt"]),
@@ -227,7 +285,8 @@ def make_report(args):
     loops = read_loops(fp("loops.csv")) if os.path.isfile(fp("loops.csv")) else []
     in_session = summary.get("loops")
     if in_session is not None and os.path.isfile(fp("loops.csv")):
-        expected = int(in_session) + int(summary.get("cross_session_loops", 0))
+        expected = (int(summary_number(summary, "loops", 0))
+                    + int(summary_number(summary, "cross_session_loops", 0)))
         if len(loops) != expected:
             raise ReportError(f"{fp('loops.csv')}: expected {expected} loops (summary.json), got "
                               f"{len(loops)}: the file is truncated or from another run")
@@ -326,17 +385,15 @@ def make_report(args):
     # 3. Timing per stage.
     timing = {}
     if os.path.isfile(fp("timings.csv")):
-        with open(fp("timings.csv")) as f:
-            reader = csv.DictReader(f)
-            for row in reader:
-                for k, v in row.items():
-                    if k in ("keyframe", "frame", "query") or v in (None, ""):
-                        continue
-                    try:
-                        value = float(v)
-                    except ValueError:  # a non-numeric column (e.g. status) is not a stage
-                        continue
-                    timing.setdefault(k, []).append(value)
+        for _, row in read_csv_rows(fp("timings.csv"))[1]:
+            for k, v in row.items():
+                if k in ("keyframe", "frame", "query") or v in (None, ""):
+                    continue
+                try:
+                    value = float(v)
+                except ValueError:  # a non-numeric column (e.g. status) is not a stage
+                    continue
+                timing.setdefault(k, []).append(value)
     # summary.json timing_ms {stage: {median, p90, max, ...}} (ms per keyframe), as detect and
     # run write it.
     if not timing and isinstance(summary.get("timing_ms"), dict):
@@ -371,9 +428,12 @@ def make_report(args):
     # 4. Precision / recall.
     curve = None
     if os.path.isfile(fp("pr_curve.csv")):
-        with open(fp("pr_curve.csv")) as f:
-            rows = list(csv.DictReader(f))
-        curve = [(float(r["recall"]), float(r["precision"])) for r in rows]
+        rows = [row for _, row in read_csv_rows(fp("pr_curve.csv"))[1]]
+        try:
+            curve = [(float(r["recall"]), float(r["precision"])) for r in rows]
+        except (KeyError, ValueError):
+            raise ReportError(f"{fp('pr_curve.csv')}: expected numeric recall and precision "
+                              "columns (pr_curve.csv as `sparseloop run` writes it)")
     elif os.path.isfile(fp("gt_loops.txt")) and loops:
         e = eval_loops(args, fp("loops.csv"), ["--gt-loops", fp("gt_loops.txt")])
         curve = [(p["recall"], p["precision"]) for p in e["loops"]["curve"]]
@@ -416,7 +476,8 @@ def make_report(args):
             "img{max-width:100%}td{padding:2px 8px}</style></head><body>"
             + "\n".join(body) + "</body></html>\n")
     tmp = fp(f"report.html.tmp.{os.getpid()}")
-    with open(tmp, "w") as f:
+    # A folder name that is not UTF-8 reaches here as surrogates: written as U+FFFD.
+    with open(tmp, "w", encoding="utf-8", errors="replace") as f:
         f.write(page)
     os.replace(tmp, fp("report.html"))
     return 0

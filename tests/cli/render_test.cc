@@ -442,6 +442,35 @@ TEST(ReportCli, MissingFolderOrTrajectoryFails) {
   EXPECT_NE(r.err.find("no trajectory"), std::string::npos) << r.err;
 }
 
+// The report reads the run's files as `eval` reads them: a BOM, CR-only or CRLF line ends, an
+// image name that is not UTF-8. A truncated summary.json is one line naming the file and its line
+// (it was a Python traceback).
+TEST(ReportCli, ReadsWhatEvalReadsAndNamesABrokenSummary) {
+  if (cli::FindPython().empty()) {
+    if (InCi()) FAIL() << "python3 with matplotlib required in CI";
+    GTEST_SKIP() << "no python3 with matplotlib";
+  }
+  const auto dir = OutDir("run");
+  FabricateRun(dir);
+  std::string loops = "\xEF\xBB\xBFquery,match,score,query_image\r";
+  for (int i = 210; i < 390; i += 20)
+    loops += fmt::format("{},{},0.8,\"\xff{}.png\"\r", i, i - 200, i);
+  WriteText(dir / "loops.csv", loops);
+  WriteText(dir / "summary.json",
+            "\xEF\xBB\xBF{\r\n\"frames\": 400,\r\n\"loops\": 9,\r\n\"gt_loop_distance\": 20,"
+            "\r\n\"dataset\": \"seq\xff\"\r\n}\r\n");
+  CliResult r = RunCli({"report", dir.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(ReadText(dir / "report.html").find("9 loops, 9 accepted"), std::string::npos);
+
+  WriteText(dir / "summary.json", "{\"frames\": 400,\n\"loops\": 9,\n\"gt_loo");
+  r = RunCli({"report", dir.string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find((dir / "summary.json").string() + ":3: expected"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("Traceback"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace sparseloop::test
 
