@@ -119,8 +119,7 @@ int RunDetect(int argc, char** argv) {
                 /*graph_columns=*/false);
   WriteFramesCsv(out / "frames.csv", result.frame_results);
   WriteTimingsCsv(out / "timings.csv", result.frame_results);
-  nlohmann::json summary =
-      DetectionSummaryJson(result.frame_results, loops.size(), result.bytes_per_keyframe);
+  nlohmann::json summary = DetectionSummaryJson(result, loops.size());
   summary["command"] = "detect";
   summary["dataset"] = flags.dataset;
   if (have_poses)

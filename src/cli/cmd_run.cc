@@ -349,8 +349,7 @@ int RunRun(int argc, char** argv) {
   WriteTimingsCsv(out / "timings.csv", result.frame_results);
   WriteFramesCsv(out / "frames.csv", result.frame_results);
 
-  nlohmann::json summary =
-      DetectionSummaryJson(result.frame_results, result.loops.size(), result.bytes_per_keyframe);
+  nlohmann::json summary = DetectionSummaryJson(result, result.loops.size());
   summary["command"] = "run";
   summary["dataset"] = flags.dataset;
   summary["poses_file"] = raw_source;  // --poses, or the rosbag: pose topic

@@ -424,14 +424,16 @@ void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr) 
   });
 }
 
-nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size_t loops,
-                                    double bytes_per_keyframe) {
+nlohmann::json DetectionSummaryJson(const PipelineResult& result, size_t loops) {
+  const std::vector<LoopResult>& results = result.frame_results;
   nlohmann::json j;
   j["keyframes"] = results.size();
   j["loops"] = loops;
-  j["bytes_per_keyframe"] = bytes_per_keyframe;
+  j["bytes_per_keyframe"] = result.bytes_per_keyframe;
   j["status_counts"] = StatusCountsJson(results);
   j["loop_sources"] = SourceCountsJson(results);
+  j["mapped_pixels"] = {{"keyframes", result.mapped_keyframes},
+                        {"keyframes_without_depth", result.mapped_keyframes_without_depth}};
   // Raw pose resets (the caller's, or jumps the detector noticed): frame and reason.
   j["pose_resets"] = nlohmann::json::array();
   for (const auto& r : results)

@@ -131,9 +131,9 @@ nlohmann::json SourceCountsJson(const std::vector<LoopResult>& results);
 // verify_ms,total_ms (only millisecond columns besides the first two; report.py plots each).
 void WritePrCurveCsv(const std::filesystem::path& path, const LoopPrResult& pr);
 void WriteTimingsCsv(const std::filesystem::path& path, const std::vector<LoopResult>& results);
-// keyframes, loops, bytes_per_keyframe, status_counts and timing_ms {stage: {median,p90,p99,max}}.
-nlohmann::json DetectionSummaryJson(const std::vector<LoopResult>& results, size_t loops,
-                                    double bytes_per_keyframe);
+// keyframes, loops, bytes_per_keyframe, status_counts, mapped_pixels {keyframes,
+// keyframes_without_depth} and timing_ms {stage: {median,p90,p99,max}} of a run's result.
+nlohmann::json DetectionSummaryJson(const PipelineResult& result, size_t loops);
 void AddLoopTruthJson(nlohmann::json& summary, const LoopTruth& truth,
                       const std::vector<bool>& accepted);
 void PrintRunSummary(std::ostream& os, const nlohmann::json& summary,

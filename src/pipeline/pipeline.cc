@@ -145,6 +145,13 @@ namespace {
 
 using StepCovariances = std::vector<std::optional<Eigen::Matrix<double, 6, 6>>>;
 
+// DIR/mapped/NNNNNN.txt: the mapped pixels of frame `index`.
+std::filesystem::path MappedPixelsFile(const std::filesystem::path& mapped_dir, int64_t index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(index));
+  return mapped_dir / name;
+}
+
 // Frame i of the dataset as a keyframe: image (empty when unreadable), intrinsics, the raw pose
 // and the caller's step covariance when given, the mapped pixels when `mapped_dir` has a file.
 KeyframeInput FrameKeyframe(const Dataset& dataset, size_t i, const Trajectory* raw,
@@ -160,9 +167,7 @@ KeyframeInput FrameKeyframe(const Dataset& dataset, size_t i, const Trajectory* 
   if (raw) input.world_from_cam = Sim3d(raw->poses[i].world_from_cam);
   if (!step_covariances.empty()) input.odometry_covariance = step_covariances[i];
   if (!mapped_dir.empty()) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "%06lld.txt", static_cast<long long>(frame.index));
-    const auto path = mapped_dir / name;
+    const auto path = MappedPixelsFile(mapped_dir, frame.index);
     if (std::filesystem::exists(path)) {
       MappedPixels m = ReadMappedPixels(path);
       input.mapped_pixels = std::move(m.pixels);
@@ -170,6 +175,32 @@ KeyframeInput FrameKeyframe(const Dataset& dataset, size_t i, const Trajectory* 
     }
   }
   return input;
+}
+
+// Counts the keyframe's mapped pixels in `result`; a file holding only unknown depths (<= 0) is
+// named in a warning (the first few; WarnMappedPixelsWithoutDepth sums up the rest).
+void CountMappedPixels(const KeyframeInput& input, const std::filesystem::path& mapped_dir,
+                       PipelineResult* result) {
+  constexpr size_t kFilesNamed = 3;
+  if (input.mapped_pixels.empty()) return;
+  ++result->mapped_keyframes;
+  if (std::any_of(input.mapped_depths.begin(), input.mapped_depths.end(),
+                  [](float d) { return d > 0.0f; }))
+    return;
+  if (result->mapped_keyframes_without_depth++ < kFilesNamed) {
+    Logger().warn("{}: {} mapped pixels, none with a positive depth (<= 0: unknown)",
+                  MappedPixelsFile(mapped_dir, input.id).string(), input.mapped_pixels.size());
+  }
+}
+
+void WarnMappedPixelsWithoutDepth(const std::filesystem::path& mapped_dir,
+                                  const PipelineResult& result) {
+  if (result.mapped_keyframes_without_depth == 0) return;
+  Logger().warn(
+      "{} of {} keyframes with mapped pixels ({}) have no positive depth: their features are "
+      "taken around the mapped pixels, and their loops are verified without depths. If the "
+      "vSLAM knows no depth, use_mapped_pixels=false extracts from the whole image",
+      result.mapped_keyframes_without_depth, result.mapped_keyframes, mapped_dir.string());
 }
 
 // The run's session in the persistent map (options.map_path), earlier sessions loaded into
@@ -282,6 +313,7 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
       continue;
     }
     LoopEvent event = closing.AddKeyframe(input);
+    CountMappedPixels(input, mapped_dir, &result);
     row_of_id[frame.index] = i;
     result.keyframe_frames.push_back(frame.index);
     if (event.in_graph) {
@@ -302,6 +334,7 @@ PipelineResult RunOffline(const Dataset& dataset, const Trajectory* raw,
     if (progress) progress({i + 1, dataset.frames.size(), result.loops.size()});
   }
   result.detect_seconds = detect_timer.ElapsedMs() / 1000.0;
+  WarnMappedPixelsWithoutDepth(mapped_dir, result);
   size_t bytes = 0;
   for (const auto& [id, row] : row_of_id) bytes += closing.detector().packed_record(id).Bytes();
   if (!row_of_id.empty()) result.bytes_per_keyframe = double(bytes) / row_of_id.size();

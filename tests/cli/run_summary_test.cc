@@ -152,6 +152,29 @@ fs::path ShortSequence(const fs::path& dir, int frames) {
   return copy;
 }
 
+// Mapped-pixel files whose depths are all unknown (<= 0) are reported: a warning naming the files
+// and the count in summary.json (mapped_pixels.keyframes_without_depth); such a run found no loop
+// and said nothing.
+TEST(CliRunSummary, MappedPixelsWithoutAnyDepthAreReported) {
+  const auto dir = TempDir();
+  const fs::path seq = ShortSequence(dir, 12);
+  for (int i = 0; i < 12; ++i) {
+    std::string text = "# u v depth\n";
+    for (int k = 0; k < 20; ++k)
+      text += fmt::format("{} {} {}\n", 10 + 5 * k, 20 + 3 * k, i == 0 ? 5.0 : -(k % 2));
+    WriteText(seq / "mapped" / fmt::format("{:06d}.txt", i), text);
+  }
+  const CliResult r =
+      RunCli({"detect", "--dataset", "kitti:" + seq.string(), "--out", (dir / "a").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = ReadJson(dir / "a" / "summary.json");
+  ASSERT_TRUE(summary.contains("mapped_pixels")) << summary.dump(1);
+  EXPECT_EQ(summary["mapped_pixels"]["keyframes"].get<int>(), 12);
+  EXPECT_EQ(summary["mapped_pixels"]["keyframes_without_depth"].get<int>(), 11);
+  EXPECT_NE(r.err.find((seq / "mapped" / "000001.txt").string()), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("11 of 12 keyframes"), std::string::npos) << r.err;
+}
+
 // --set KEY=VALUE reaches any configuration key from the command line, after --config and the
 // shorthand flags; a bad key or value is refused before the run, naming the --set argument.
 TEST(CliRunSummary, SetOverridesAnyConfigurationKey) {

@@ -66,6 +66,12 @@ struct PipelineResult {
   std::vector<LoopResult> cross_session_loops;
   std::vector<int64_t> keyframe_frames;  // dataset frame index of each processed keyframe
   size_t skipped_frames = 0;             // unreadable images (see skip_unreadable_frames)
+  // Keyframes that had mapped pixels (a non-empty DIR/mapped/NNNNNN.txt, use_mapped_pixels), and
+  // of those the ones without a single positive depth (every depth <= 0: unknown). Such
+  // keyframes take their features around the mapped pixels yet verify loops without depths; the
+  // run logs a warning naming their files.
+  size_t mapped_keyframes = 0;
+  size_t mapped_keyframes_without_depth = 0;
   PoseGraphSummary optimizer;
   Trajectory raw;                      // raw poses matched to the dataset's frames
   Trajectory corrected;                // same frames, corrected
