@@ -261,3 +261,18 @@ def test_presets_configure_the_closer_and_an_unknown_one_is_named():
     with pytest.raises(ValueError, match=r"on_correction: expected a callable or None, got 5"):
         sparseloop.LoopClosing(on_correction=5)
 
+
+def test_written_times_read_back_distinct(tmp_path):
+    """Times closer than a format's resolution: TUM keeps them distinct, EuRoC (integer
+    nanoseconds) refuses them naming the frame; both were written equal and refused on reading."""
+    poses = np.stack([np.eye(4)] * 3)
+    stamps = [1.0, 1.0 + 1e-10, 1.0 + 2e-10]
+    sparseloop.write_trajectory(tmp_path / "t.txt", poses, stamps, format="tum")
+    back = sparseloop.read_trajectory(tmp_path / "t.txt")
+    assert list(back["timestamps"]) == stamps
+    with pytest.raises(ValueError, match=r"frame 1"):
+        sparseloop.write_trajectory(tmp_path / "e.csv", poses, stamps, format="euroc")
+    with pytest.raises(ValueError, match=r"frame 0"):
+        sparseloop.write_trajectory(tmp_path / "e.csv", poses, [1e10, 1e10 + 1, 1e10 + 2],
+                                    format="euroc")
+    assert not (tmp_path / "e.csv").exists()

@@ -1,10 +1,14 @@
 #include "sparseloop/io/trajectory_io.h"
 
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <optional>
+#include <stdexcept>
+#include <system_error>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -404,6 +408,54 @@ TrajectoryFile ReadTrajectoryFile(const std::filesystem::path& path, TrajectoryF
   return {};
 }
 
+std::string FormatSeconds(double seconds) {
+  const std::string fixed = fmt::format("{:.9f}", seconds);
+  double back = 0.0;
+  const auto [ptr, ec] = std::from_chars(fixed.data(), fixed.data() + fixed.size(), back);
+  if (ec == std::errc() && ptr == fixed.data() + fixed.size() && back == seconds) return fixed;
+  return fmt::format("{}", seconds);  // fmt's shortest round-trip form
+}
+
+namespace {
+
+// The integer nanoseconds of EuRoC CSV for each pose's time (nearest), or std::invalid_argument
+// naming `path` and the frame for a time beyond int64 or less than 1 ns from the previous,
+// different, one: written, they would be a wrapped value or a repeat the reader refuses.
+std::vector<int64_t> EurocNanoseconds(const std::filesystem::path& path, const Trajectory& traj) {
+  std::vector<int64_t> out;
+  out.reserve(traj.poses.size());
+  for (size_t i = 0; i < traj.poses.size(); ++i) {
+    const StampedPose& p = traj.poses[i];
+    // Whole seconds and the fraction apart: t * 1e9 as one double rounds to 256 ns at 1e9 s.
+    const double whole = std::floor(p.timestamp);
+    const auto fraction = static_cast<int64_t>(std::llround((p.timestamp - whole) * 1e9));
+    int64_t ns = 0;
+    const bool fits =
+        std::abs(whole) < 1e10 &&
+        !__builtin_mul_overflow(static_cast<int64_t>(whole), int64_t{1000000000}, &ns) &&
+        !__builtin_add_overflow(ns, fraction, &ns);
+    if (!fits) {
+      throw std::invalid_argument(
+          fmt::format("{}: expected times EuRoC CSV can hold (integer nanoseconds in int64, within "
+                      "+-9223372036.854775807 s), got frame {} at {} s",
+                      path.string(), p.frame, p.timestamp));
+    }
+    if (i > 0 && ns == out.back() && p.timestamp != traj.poses[i - 1].timestamp) {
+      const StampedPose& before = traj.poses[i - 1];
+      throw std::invalid_argument(fmt::format(
+          "{}: expected times EuRoC CSV can hold (integer nanoseconds: at least 1 ns apart), got "
+          "frame {} at {} s, {:.3g} ns from frame {} at {} s: both would be written as {} ns",
+          path.string(), p.frame, FormatSeconds(p.timestamp),
+          1e9 * std::abs(p.timestamp - before.timestamp), before.frame,
+          FormatSeconds(before.timestamp), ns));
+    }
+    out.push_back(ns);
+  }
+  return out;
+}
+
+}  // namespace
+
 void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
                      TrajectoryFormat format) {
   SL_CHECK_MSG(format != TrajectoryFormat::kAuto,
@@ -416,6 +468,8 @@ void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
                      p.world_from_cam.rotation.coeffs().allFinite(),
                  "trajectory pose of frame {} is not finite", p.frame);
   }
+  const std::vector<int64_t> euroc_ns =
+      format == TrajectoryFormat::kEuroc ? EurocNanoseconds(path, traj) : std::vector<int64_t>{};
   if (format == TrajectoryFormat::kKitti) {
     for (size_t i = 0; i < traj.poses.size(); ++i) {
       if (traj.poses[i].frame != static_cast<int64_t>(i)) {
@@ -434,13 +488,14 @@ void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
                      "#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x "
                      "[],q_RS_y [],q_RS_z []\n");
     }
-    for (const auto& p : traj.poses) {
+    for (size_t row = 0; row < traj.poses.size(); ++row) {
+      const StampedPose& p = traj.poses[row];
       const Eigen::Vector3d& t = p.world_from_cam.translation;
       switch (format) {
         case TrajectoryFormat::kTum: {
           const auto q = QuaternionToXyzw(p.world_from_cam.rotation);
-          fmt::format_to(std::back_inserter(buf), "{:.9f} {} {} {} {} {} {} {}\n", p.timestamp,
-                         t.x(), t.y(), t.z(), q[0], q[1], q[2], q[3]);
+          fmt::format_to(std::back_inserter(buf), "{} {} {} {} {} {} {} {}\n",
+                         FormatSeconds(p.timestamp), t.x(), t.y(), t.z(), q[0], q[1], q[2], q[3]);
           break;
         }
         case TrajectoryFormat::kKitti: {
@@ -452,9 +507,8 @@ void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
         }
         case TrajectoryFormat::kEuroc: {
           const auto q = QuaternionToWxyz(p.world_from_cam.rotation);
-          const auto ns = static_cast<int64_t>(std::llround(p.timestamp * 1e9));
-          fmt::format_to(std::back_inserter(buf), "{},{},{},{},{},{},{},{}\n", ns, t.x(), t.y(),
-                         t.z(), q[0], q[1], q[2], q[3]);
+          fmt::format_to(std::back_inserter(buf), "{},{},{},{},{},{},{},{}\n", euroc_ns[row], t.x(),
+                         t.y(), t.z(), q[0], q[1], q[2], q[3]);
           break;
         }
         case TrajectoryFormat::kPositions:

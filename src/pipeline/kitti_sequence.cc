@@ -178,7 +178,7 @@ SequenceResult WriteKittiSequence(const fs::path& out_dir, const World& world,
   WriteTrajectory(out_dir / "poses_raw.txt", raw_traj, TrajectoryFormat::kKitti);
   WriteRawScale(out_dir / "raw_scale.txt", scale);
   WriteFileAtomically(out_dir / "times.txt", [&](std::ostream& out) {
-    for (const auto& p : gt.poses) out << fmt::format("{:.6e}\n", p.timestamp);
+    for (const auto& p : gt.poses) out << FormatSeconds(p.timestamp) << "\n";
   });
   WriteKittiCalib(out_dir / "calib.txt", camera);
 

@@ -514,5 +514,26 @@ TEST(RenderCli, AnEarlierRenderIsReplacedWholeAndAForeignFolderIsRefused) {
   EXPECT_EQ(ReadText(dir / "kitti" / "times.txt"), "0\n");
 }
 
+// times.txt keeps distinct times distinct: a trajectory stamped in seconds since 1970 at 30 Hz
+// was written "1.311868e+09" on every line, and `run` then refused the render's own times.txt.
+TEST(RenderCli, TimesTxtKeepsEveryTimeOfTheTrajectory) {
+  const auto dir = TempDir();
+  ASSERT_EQ(RunCli({"render", "--world", "aerial", "--frames", "4", "--poses-only", "--out",
+                    (dir / "p").string()})
+                .exit_code,
+            0);
+  Trajectory path = ReadTrajectory(dir / "p" / "poses_gt.txt");
+  path.has_timestamps = true;
+  for (size_t i = 0; i < path.size(); ++i) path.poses[i].timestamp = 1311868229.576 + i / 30.0;
+  const std::string trajectory = (dir / "tum.txt").string();
+  WriteTrajectory(trajectory, path, TrajectoryFormat::kTum);
+  const CliResult r = RunCli({"render", "--world", "aerial", "--trajectory", trajectory,
+                              "--no-mapped", "--out", (dir / "r").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Dataset d = OpenDataset("kitti:" + (dir / "r").string());
+  ASSERT_EQ(d.frames.size(), 4u);
+  EXPECT_NEAR(d.frames[3].timestamp - d.frames[0].timestamp, 0.1, 1e-6);
+}
+
 }  // namespace
 }  // namespace sparseloop::test

@@ -357,6 +357,47 @@ TEST(TrajectoryWrite, TumTimeHasNineDecimals) {
       << test::ReadText(path);
 }
 
+// Times closer than a writer's resolution. TUM writes each time with the digits that read back as
+// the same double (9 decimals when they do), so distinct times stay distinct through a file. EuRoC
+// CSV holds integer nanoseconds: times less than 1 ns apart, or beyond the int64 range, are refused
+// naming the frame before the file is touched. (Both were written equal, or as
+// -9223372036854775808, and then refused by our own reader.)
+TEST(TrajectoryWrite, CloseTimestampsRoundTripOrAreRefusedUpFront) {
+  const auto dir = test::TempDir();
+  auto traj = RandomTrajectory(6, 6, 0.0);
+  const double times[] = {1e-12,       2e-12,          0.5,
+                          0.5 + 1e-10, 1311868229.576, std::nextafter(1311868229.576, 2e9)};
+  for (size_t i = 0; i < traj.size(); ++i) traj.poses[i].timestamp = times[i];
+  WriteTrajectory(dir / "t.txt", traj, F::kTum);
+  const Trajectory back = ReadTrajectory(dir / "t.txt");
+  ASSERT_EQ(back.size(), traj.size());
+  for (size_t i = 0; i < traj.size(); ++i) EXPECT_EQ(back.poses[i].timestamp, times[i]) << i;
+  EXPECT_NE(test::ReadText(dir / "t.txt").find("\n0.500000000 "), std::string::npos)
+      << "times that 9 decimals hold keep them";
+
+  // EuRoC: whole nanoseconds round-trip exactly; closer times and huge ones are refused.
+  for (size_t i = 0; i < traj.size(); ++i) traj.poses[i].timestamp = 7.0 + 1e-9 * i;
+  WriteTrajectory(dir / "e.csv", traj, F::kEuroc);
+  const Trajectory e = ReadTrajectory(dir / "e.csv");
+  for (size_t i = 0; i < traj.size(); ++i)
+    EXPECT_EQ(e.poses[i].timestamp, 7.0 + 1e-9 * static_cast<double>(i)) << i;
+  const auto refused = [&](double t3, const std::string& message) {
+    SCOPED_TRACE(message);
+    traj.poses[3].timestamp = t3;
+    for (size_t i = 4; i < traj.size(); ++i) traj.poses[i].timestamp = t3 + i;
+    try {
+      WriteTrajectory(dir / "refused.csv", traj, F::kEuroc);
+      ADD_FAILURE() << "no throw";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("refused.csv"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "refused.csv"));
+  };
+  refused(traj.poses[2].timestamp + 1e-10, "frame 3");
+  refused(1e10, "frame 3");
+}
+
 TEST(TrajectoryWrite, KittiRoundTrip) {
   auto traj = RandomTrajectory(150, 2, 0.0);
   traj.has_timestamps = false;

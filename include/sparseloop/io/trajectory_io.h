@@ -62,11 +62,19 @@ struct TrajectoryFile {
 TrajectoryFile ReadTrajectoryFile(const std::filesystem::path& path, TrajectoryFormat format,
                                   const TrajectoryReadOptions& options = {});
 
-// Writes atomically (WriteFileAtomically). kTum: "%.9f" time, poses with shortest round-trip
-// precision; kKitti: 12 numbers per line (the frame index is not written); kEuroc: CSV with
-// integer nanosecond timestamps; kPositions: "frame x y z". kAuto throws std::invalid_argument;
-// so does writing a positions-only trajectory (has_rotation false) as TUM, KITTI or EuRoC.
+// Writes atomically (WriteFileAtomically). kTum: the time as FormatSeconds writes it, poses with
+// shortest round-trip precision; kKitti: 12 numbers per line (the frame index is not written);
+// kEuroc: CSV with integer nanosecond timestamps; kPositions: "frame x y z". kAuto throws
+// std::invalid_argument; so does writing a positions-only trajectory (has_rotation false) as TUM,
+// KITTI or EuRoC, and writing as EuRoC a time beyond the int64 nanoseconds it holds (+-9.2e9 s)
+// or two different times less than 1 ns apart (the file would repeat a time its reader refuses).
+// Nothing is written when it throws.
 void WriteTrajectory(const std::filesystem::path& path, const Trajectory& traj,
                      TrajectoryFormat format);
+
+// A time in seconds as text that reads back as the same double: 9 decimals ("0.500000000") when
+// they do, else the shortest text that does ("1e-12", "0.5000000001"). Distinct times stay
+// distinct through a file (TUM trajectories, a render's times.txt).
+std::string FormatSeconds(double seconds);
 
 }  // namespace sparseloop
