@@ -61,42 +61,64 @@ py::array_t<double, py::array::c_style | py::array::forcecast> ArrayArgument(
                                           name, py::repr(o).cast<std::string>()));
 }
 
-// The key path of the first float in `o` that is NaN or infinite ("detector.min_path_ratio"), or
-// nullopt. JSON has no such numbers: Python's json.dumps writes them anyway, as NaN / Infinity.
-std::optional<std::string> NonFiniteKey(const py::handle& o, const std::string& path) {
-  if (py::isinstance<py::float_>(o)) {
-    if (!std::isfinite(o.cast<double>())) return path;
-  } else if (py::isinstance<py::dict>(o)) {
-    for (const auto& [key, value] : o.cast<py::dict>()) {
-      const std::string name = py::str(key).cast<std::string>();
-      if (auto found = NonFiniteKey(value, path.empty() ? name : path + "." + name)) return found;
+// A value of a config dict as JSON. `path` is its key path ("detector.min_path_ratio"), which a
+// ValueError names for what JSON cannot hold (NaN, an object); numpy scalars (np.float64,
+// np.int64, np.bool_) and arrays are the Python values they hold (`tolist()`), as a float or
+// int literal would be.
+nlohmann::json JsonFromPython(const py::handle& o, const std::string& path,
+                              const std::string& argument) {
+  const auto refused = [&](const std::string& expected) {
+    return std::invalid_argument(
+        path.empty() ? fmt::format("{}: expected a dict of config keys, got {}", argument,
+                                   py::repr(o).cast<std::string>())
+                     : fmt::format("{}: expected {} for \"{}\", got {}", argument, expected, path,
+                                   py::repr(o).cast<std::string>()));
+  };
+  if (o.is_none()) return nullptr;
+  if (py::isinstance<py::bool_>(o)) return o.cast<bool>();
+  if (py::isinstance<py::int_>(o)) {
+    try {
+      return o.cast<int64_t>();
+    } catch (const py::cast_error&) {
     }
-  } else if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+    try {
+      return o.cast<uint64_t>();  // a seed above 2^63
+    } catch (const py::cast_error&) {
+      throw refused("an integer within 64 bits");
+    }
+  }
+  if (py::isinstance<py::float_>(o)) {
+    const double v = o.cast<double>();
+    if (!std::isfinite(v)) {
+      throw std::invalid_argument(fmt::format(
+          "{}: expected a finite number for \"{}\", got NaN or infinity", argument, path));
+    }
+    return v;
+  }
+  if (py::isinstance<py::str>(o)) return o.cast<std::string>();
+  if (py::isinstance<py::dict>(o)) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const auto& [key, value] : o.cast<py::dict>()) {
+      if (!py::isinstance<py::str>(key)) throw refused("string keys");
+      const std::string name = key.cast<std::string>();
+      j[name] = JsonFromPython(value, path.empty() ? name : path + "." + name, argument);
+    }
+    return j;
+  }
+  if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+    nlohmann::json j = nlohmann::json::array();
     const py::sequence items = o.cast<py::sequence>();
     for (size_t i = 0; i < items.size(); ++i) {
       const py::object item = items[i];
-      if (auto found = NonFiniteKey(item, fmt::format("{}[{}]", path, i))) return found;
+      j.push_back(JsonFromPython(item, fmt::format("{}[{}]", path, i), argument));
     }
+    return j;
   }
-  return std::nullopt;
-}
-
-// A config dict as JSON; ValueError naming the argument and the key for what JSON cannot hold.
-nlohmann::json FromPython(const py::object& o, const std::string& argument) {
-  if (const auto key = NonFiniteKey(o, "")) {
-    throw std::invalid_argument(fmt::format(
-        "{}: expected a finite number for \"{}\", got NaN or infinity", argument, *key));
+  if (py::isinstance(o, py::module_::import("numpy").attr("generic")) ||
+      py::isinstance<py::array>(o)) {
+    return JsonFromPython(o.attr("tolist")(), path, argument);
   }
-  std::string text;
-  try {
-    text = py::module_::import("json").attr("dumps")(o).cast<std::string>();
-  } catch (py::error_already_set& e) {
-    throw std::invalid_argument(
-        fmt::format("{}: expected a dict of config keys (numbers, "
-                    "strings, booleans, lists, dicts), got {}",
-                    argument, e.what()));
-  }
-  return nlohmann::json::parse(text);
+  throw refused("a number, string, boolean, list or dict");
 }
 
 // 4x4 row-major matrix [sR t; 0 1] (scale = cube root of det(sR)) -> Sim3d. `name` is the
@@ -304,10 +326,10 @@ LoopClosing::Options ClosingOptions(const py::object& config, const py::object& 
     ApplyPresetArgument(preset.cast<std::string>(), &p);
   }
   if (!config.is_none()) {
-    if (py::isinstance<py::str>(config))
-      LoadConfigFile(config.cast<std::string>(), &p);
+    if (py::isinstance<py::str>(config) || py::hasattr(config, "__fspath__"))
+      LoadConfigFile(config.cast<std::filesystem::path>(), &p);
     else
-      ApplyConfig(FromPython(config, "config"), "config", &p);
+      ApplyConfig(JsonFromPython(config, "", "config"), "config", &p);
   }
   LoopClosing::Options o = LoopClosingOptionsFor(p, solve_while_running);
   o.optimize = optimize;

@@ -262,6 +262,26 @@ def test_presets_configure_the_closer_and_an_unknown_one_is_named():
         sparseloop.LoopClosing(on_correction=5)
 
 
+def test_numpy_scalars_in_a_config_dict_are_their_values(tmp_path):
+    """numpy scalars (what arithmetic on arrays gives) are read as the Python numbers they hold;
+    they were a ValueError quoting json's traceback. A path-like config is the file."""
+    config = {"detector": {"min_path_ratio": np.float64(0.3), "check_every": np.int64(2),
+                           "features": {"max_features": np.int32(15)}},
+              "use_mapped_pixels": np.bool_(False)}
+    closing = sparseloop.LoopClosing(config=config, optimize=False)
+    closing.add_keyframe(**blank(0))
+    closing.finish()
+    with pytest.raises(ValueError, match=r'config: expected a finite number for "detector.min_path_ratio"'):
+        sparseloop.LoopClosing(config={"detector": {"min_path_ratio": np.float32("nan")}})
+    # What JSON cannot hold names its key, and never shows a traceback.
+    with pytest.raises(ValueError, match=r'config: .*"detector.check_every".*object') as error:
+        sparseloop.LoopClosing(config={"detector": {"check_every": object()}})
+    assert "Traceback" not in str(error.value) and "json" not in str(error.value)
+    (tmp_path / "c.json").write_text('{"detector": {"check_every": 0}}')
+    with pytest.raises(sparseloop.FileError, match=r"c.json"):
+        sparseloop.LoopClosing(config=tmp_path / "c.json")
+
+
 def test_written_times_read_back_distinct(tmp_path):
     """Times closer than a format's resolution: TUM keeps them distinct, EuRoC (integer
     nanoseconds) refuses them naming the frame; both were written equal and refused on reading."""
