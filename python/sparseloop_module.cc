@@ -407,12 +407,16 @@ class PyLoopClosing {
     in.world_from_cam = PoseFromPython(pose, "pose");
     in.pose_reset = pose_reset;
     if (!mapped_pixels.is_none()) {
-      const auto px =
-          mapped_pixels.cast<py::array_t<float, py::array::c_style | py::array::forcecast>>();
-      if (px.ndim() != 2 || px.shape(1) != 2)
-        throw std::invalid_argument("mapped_pixels must have shape (N, 2)");
-      for (py::ssize_t i = 0; i < px.shape(0); ++i)
-        in.mapped_pixels.emplace_back(px.at(i, 0), px.at(i, 1));
+      const auto px = ArrayArgument(mapped_pixels, "mapped_pixels");
+      if (px.ndim() != 2 || px.shape(1) != 2) {
+        throw std::invalid_argument(fmt::format(
+            "mapped_pixels: expected shape (N, 2) (u, v per row), got shape {}", ShapeOf(px)));
+      }
+      // Non-finite values are refused by LoopDetector's check, naming the row.
+      for (py::ssize_t i = 0; i < px.shape(0); ++i) {
+        in.mapped_pixels.emplace_back(static_cast<float>(px.at(i, 0)),
+                                      static_cast<float>(px.at(i, 1)));
+      }
     }
     if (!mapped_depths.is_none()) {
       const auto d = ArrayArgument(mapped_depths, "mapped_depths");

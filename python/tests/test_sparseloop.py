@@ -282,6 +282,21 @@ def test_numpy_scalars_in_a_config_dict_are_their_values(tmp_path):
         sparseloop.LoopClosing(config=tmp_path / "c.json")
 
 
+def test_mapped_pixels_must_be_finite():
+    """A NaN or infinite pixel is refused naming the argument and the row, as the CLI's reader
+    refuses a non-finite number in a mapped-pixels file (a NaN pixel was accepted)."""
+    closing = sparseloop.LoopClosing(optimize=False)
+    for bad in ([np.nan, 10.0], [10.0, np.inf]):
+        pixels = np.array([[10.0, 10.0], bad], np.float32)
+        with pytest.raises(ValueError, match=r"mapped_pixels\[1\]: expected finite pixel coordinates"):
+            closing.add_keyframe(**blank(0), mapped_pixels=pixels)
+    with pytest.raises(ValueError, match=r"mapped_pixels: expected shape \(N, 2\)"):
+        closing.add_keyframe(**blank(0), mapped_pixels=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"mapped_pixels: expected numbers"):
+        closing.add_keyframe(**blank(0), mapped_pixels="abc")
+    closing.add_keyframe(**blank(0), mapped_pixels=np.array([[10.0, 10.0]]))
+
+
 def test_written_times_read_back_distinct(tmp_path):
     """Times closer than a format's resolution: TUM keeps them distinct, EuRoC (integer
     nanoseconds) refuses them naming the frame; both were written equal and refused on reading."""

@@ -545,6 +545,19 @@ void LoopDetector::Impl::ValidateImageInput(const KeyframeInput& input) const {
       input.mapped_depths.empty() || input.mapped_depths.size() == input.mapped_pixels.size(),
       "mapped_depths ({}) must match mapped_pixels ({})", input.mapped_depths.size(),
       input.mapped_pixels.size());
+  // As the mapped-pixels file reader refuses a non-finite number; a depth <= 0 is "unknown".
+  for (size_t i = 0; i < input.mapped_pixels.size(); ++i) {
+    const cv::Point2f& p = input.mapped_pixels[i];
+    SL_CHECK_MSG(std::isfinite(p.x) && std::isfinite(p.y),
+                 "keyframe {}: mapped_pixels[{}]: expected finite pixel coordinates (u, v), got "
+                 "({}, {})",
+                 input.id, i, p.x, p.y);
+  }
+  for (size_t i = 0; i < input.mapped_depths.size(); ++i) {
+    SL_CHECK_MSG(std::isfinite(input.mapped_depths[i]),
+                 "keyframe {}: mapped_depths[{}]: expected a finite depth (<= 0: unknown), got {}",
+                 input.id, i, input.mapped_depths[i]);
+  }
 }
 
 KeyframeRecord LoopDetector::Impl::ExtractRecord(const KeyframeInput& input) const {

@@ -195,6 +195,29 @@ TEST_F(BadInput, DepthsWithoutPixels) {
   ExpectRejected(in, "mapped_depths");
 }
 
+// A NaN or infinite mapped pixel (or depth) is refused naming the entry, as the CLI's reader
+// refuses a non-finite number in a mapped-pixels file; a depth <= 0 stays "unknown".
+TEST_F(BadInput, NonFiniteMappedPixel) {
+  KeyframeInput in = ValidInput(3);
+  in.mapped_pixels = {{10.0f, 10.0f}, {20.0f, std::numeric_limits<float>::infinity()}};
+  EXPECT_THROW(detector_.Process(in), std::invalid_argument);
+  in.mapped_pixels = {{10.0f, 10.0f}, {std::numeric_limits<float>::quiet_NaN(), 20.0f}};
+  ExpectRejected(in, "mapped_pixels[1]: expected finite pixel coordinates");
+}
+
+TEST_F(BadInput, NonFiniteMappedDepth) {
+  KeyframeInput in = ValidInput(3);
+  in.mapped_pixels = {{10.0f, 10.0f}, {20.0f, 20.0f}};
+  in.mapped_depths = {-1.0f, 0.0f};  // unknown
+  EXPECT_NO_THROW(detector_.Process(in));
+  in = ValidInput(4);
+  in.mapped_pixels = {{10.0f, 10.0f}, {20.0f, 20.0f}};
+  in.mapped_depths = {std::numeric_limits<float>::quiet_NaN(), 2.0f};
+  keyframes_ = detector_.num_keyframes();
+  bytes_ = detector_.StoredBytes();
+  ExpectRejected(in, "mapped_depths[0]: expected a finite depth");
+}
+
 // Dataset-level rows: a missing or corrupt image in a sequence, and a pose file shorter than the
 // image list.
 class BadSequence : public testing::Test {

@@ -43,6 +43,7 @@ struct KeyframeInput {
   std::optional<Eigen::Matrix<double, 6, 6>> odometry_covariance;
   // Optional informative area: pixels the vSLAM mapped (feature-based SLAM) with optional depths
   // (same length, <= 0 unknown, in the pose's units), or a mask of its high-gradient pixels.
+  // Pixels and depths must be finite (Process refuses NaN / infinity naming the entry).
   std::vector<cv::Point2f> mapped_pixels;
   std::vector<float> mapped_depths;
   cv::Mat high_gradient_mask;  // CV_8UC1, non-zero = mapped
