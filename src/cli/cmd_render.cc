@@ -211,11 +211,23 @@ struct Scene {
   CameraIntrinsics camera;
 };
 
+// The poses of a trajectory flag (--trajectory, --raw): every pose needs its rotation (the
+// camera follows it, poses_raw.txt is KITTI). A FileError names the flag: "--trajectory F:2:
+// expected a trajectory with orientations ..., got a positions-only line ...".
+Trajectory ReadPosesFlag(const std::string& flag, const std::string& path,
+                         TrajectoryFormat format) {
+  TrajectoryReadOptions options;
+  options.require_rotation = true;
+  Trajectory poses;
+  NameTheFlag(flag, [&] { poses = ReadTrajectory(path, format, options); });
+  return poses;
+}
+
 Scene BuildScene(const RenderFlags& f, std::shared_ptr<const syn::TextureSet> textures) {
   Scene scene;
   if (f.world_name == "aerial") {
     if (!f.trajectory_path.empty()) {
-      scene.gt = ReadTrajectory(f.trajectory_path);
+      scene.gt = ReadPosesFlag("--trajectory", f.trajectory_path, TrajectoryFormat::kAuto);
     } else {
       syn::FlightPlanOptions plan = f.plan;
       plan.plan = syn::ParseFlightPlan(f.plan_name);
@@ -228,7 +240,11 @@ Scene BuildScene(const RenderFlags& f, std::shared_ptr<const syn::TextureSet> te
     return scene;
   }
   SL_CHECK_MSG(!f.trajectory_path.empty(), "--world street needs --trajectory FILE");
-  scene.gt = ReadTrajectory(f.trajectory_path);
+  scene.gt = ReadPosesFlag("--trajectory", f.trajectory_path, TrajectoryFormat::kAuto);
+  SL_CHECK_MSG(scene.gt.size() >= 2,
+               "--trajectory {}: expected at least 2 poses for --world street (its streets run "
+               "along the path), got {}",
+               f.trajectory_path, scene.gt.size());
   int kitti_sequence = f.kitti_sequence;
   if (kitti_sequence < 0) {
     const std::string stem = std::filesystem::path(f.trajectory_path).stem().string();
@@ -334,17 +350,25 @@ int RunRender(int argc, char** argv) {
   CheckOutputDirFlag("--out", f.out_dir, files);
   f.out_dir = ResolvedPath(f.out_dir).string();  // DIR/missing/.. is DIR
   ApplyRenderFlags(&f);
-  PrepareRenderFolder(f.out_dir, files);
+  SL_CHECK_MSG(!f.poses_only || f.raw_path.empty(),
+               "--poses-only simulates the drift; it cannot be combined with --raw");
 
+  // Every input is read and checked before --out is touched: a render that fails here keeps an
+  // earlier render in --out, and creates nothing.
   const Scene scene = BuildScene(f, MakeTextures(f));
   const Trajectory gt = SliceTrajectory(f, scene.gt);
   std::optional<Trajectory> raw;
   if (!f.raw_path.empty()) {
-    raw = ReadTrajectory(f.raw_path, ParseTrajectoryFormat(f.raw_format));
-    if (raw->size() > gt.size()) raw->poses.resize(gt.size());
+    raw = ReadPosesFlag("--raw", f.raw_path, ParseTrajectoryFormat(f.raw_format));
+    SL_CHECK_MSG(raw->size() >= gt.size(),
+                 "--raw {}: expected a pose for each of the {} frames to render (associated by "
+                 "index), got {} poses",
+                 f.raw_path, gt.size(), raw->size());
+    raw->poses.resize(gt.size());
   }
+  PrepareRenderFolder(f.out_dir, files);
+
   if (f.poses_only) {
-    SL_CHECK_MSG(!raw, "--poses-only simulates the drift; it cannot be combined with --raw");
     const syn::DriftResult drift = syn::SimulateDrift(gt, f.seq.drift);
     std::filesystem::create_directories(f.out_dir);
     WriteTrajectory(std::filesystem::path(f.out_dir) / "poses_gt.txt", gt,

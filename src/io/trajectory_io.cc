@@ -392,6 +392,11 @@ TrajectoryFile ReadTrajectoryFile(const std::filesystem::path& path, TrajectoryF
     format = DetectFormat(file);
     Logger().debug("{}: detected trajectory format {}", file.name(), ToString(format));
   }
+  if (options.require_rotation && format == TrajectoryFormat::kPositions) {
+    throw FileError(file.name(), NonEmptyDataLines(file).front().number,
+                    "a trajectory with orientations (TUM, KITTI or EuRoC)",
+                    "a positions-only line (frame x y z ...)");
+  }
   switch (format) {
     case TrajectoryFormat::kTum:
       return {ReadTum(file, options), format};

@@ -514,6 +514,43 @@ TEST(RenderCli, AnEarlierRenderIsReplacedWholeAndAForeignFolderIsRefused) {
   EXPECT_EQ(ReadText(dir / "kitti" / "times.txt"), "0\n");
 }
 
+// Everything is read and checked before --out is touched: a positions-only --trajectory (the
+// renderer needs each pose's rotation) is refused naming --trajectory and the file's line, and
+// an earlier render in --out stays as it was (it was removed, then the render failed after
+// creating its folders, naming no file).
+TEST(RenderCli, ABadTrajectoryIsRefusedBeforeTheFolderIsTouched) {
+  const auto dir = TempDir();
+  const std::string positions =
+      WriteText(dir / "positions.txt", "# frame x y z\n0 0 0 0\n1 1 0 0\n2 2 0 0\n").string();
+  const std::string out = (dir / "r").string();
+  CliResult r = RunCli(
+      {"render", "--world", "street", "--trajectory", positions, "--frames", "2", "--out", out});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--trajectory " + positions + ":2: expected"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  ASSERT_EQ(RunCli({"render", "--world", "aerial", "--frames", "3", "--out", out}).exit_code, 0);
+  const std::string before = ReadText(dir / "r" / "poses_gt.txt");
+  for (const std::string world : {"street", "aerial"}) {
+    r = RunCli(
+        {"render", "--world", world, "--trajectory", positions, "--frames", "2", "--out", out});
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("--trajectory " + positions + ":2: expected"), std::string::npos) << r.err;
+    EXPECT_EQ(ReadText(dir / "r" / "poses_gt.txt"), before);
+    EXPECT_TRUE(std::filesystem::exists(dir / "r" / "image_0" / "000002.png"));
+  }
+  // A --start past the trajectory, a missing file: refused the same way, the render kept.
+  r = RunCli({"render", "--world", "aerial", "--trajectory", (dir / "r" / "poses_gt.txt").string(),
+              "--start", "7", "--out", (dir / "s").string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--start"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "s"));
+  r = RunCli(
+      {"render", "--world", "street", "--trajectory", (dir / "none.txt").string(), "--out", out});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--trajectory"), std::string::npos) << r.err;
+  EXPECT_EQ(ReadText(dir / "r" / "poses_gt.txt"), before);
+}
+
 // times.txt keeps distinct times distinct: a trajectory stamped in seconds since 1970 at 30 Hz
 // was written "1.311868e+09" on every line, and `run` then refused the render's own times.txt.
 TEST(RenderCli, TimesTxtKeepsEveryTimeOfTheTrajectory) {

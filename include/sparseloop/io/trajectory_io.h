@@ -39,6 +39,9 @@ struct TrajectoryReadOptions {
   // pose of each run of equal timestamps / frame indices and log a warning. Real files need this:
   // the official TUM fr2/desk groundtruth.txt repeats 1311868229.5760 (line 10863).
   bool drop_duplicate_timestamps = false;
+  // True: a positions-only file (kPositions, given or detected) is a FileError at its first data
+  // line, for callers that need each pose's rotation (a renderer's camera, a pose graph).
+  bool require_rotation = false;
 
   void Check() const {}
 };
