@@ -561,6 +561,30 @@ int LineAt(const std::string& text, size_t offset) {
   return line;
 }
 
+// The 1-based column of byte `offset` on its line (line ends as LineAt counts them).
+int ColumnAt(const std::string& text, size_t offset) {
+  offset = std::min(offset, text.size());
+  size_t start = offset;
+  while (start > 0 && text[start - 1] != '\n' && text[start - 1] != '\r') --start;
+  return static_cast<int>(offset - start) + 1;
+}
+
+// The JSON parser's message without its exception name and its own position
+// ("[json.exception.parse_error.101] parse error at line 1, column 49: "): it counts "\n" only,
+// so a CR-only file was all "line 1". What remains says what was wrong ("syntax error while
+// parsing object key - unexpected '}'; expected string literal").
+std::string ParserMessage(std::string what) {
+  if (what.rfind("[json.exception.", 0) == 0) {
+    const size_t close = what.find("] ");
+    if (close != std::string::npos) what.erase(0, close + 2);
+  }
+  if (what.rfind("parse error", 0) == 0) {
+    const size_t colon = what.find(": ");
+    if (colon != std::string::npos) what.erase(0, colon + 2);
+  }
+  return what;
+}
+
 // The line of the `n`-th (0-based) `"key"` followed by a colon in `text`; 0 when not found (a key
 // written with escapes).
 int LineOfKey(const std::string& text, const std::string& key, size_t n) {
@@ -628,12 +652,17 @@ void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options)
   try {
     j = ParseWithoutDuplicateKeys(text, path.string());
   } catch (const nlohmann::json::parse_error& e) {
-    // Convert the byte offset into a line number.
-    throw FileError(path.string(), LineAt(text, e.byte), "valid JSON", e.what());
+    // Our line and column of the last byte read (e.byte counts them from 1), every line end
+    // counted.
+    const size_t at = e.byte > 0 ? e.byte - 1 : 0;
+    throw FileError(path.string(), LineAt(text, at),
+                    fmt::format("valid JSON at column {}", ColumnAt(text, at)),
+                    ParserMessage(e.what()));
   } catch (const nlohmann::json::exception& e) {
     // E.g. out_of_range 406, a number too large for a double (found by fuzz_config); the parser
     // gives no position for it.
-    throw FileError(path.string(), 0, "valid JSON with representable numbers", e.what());
+    throw FileError(path.string(), 0, "valid JSON with representable numbers",
+                    ParserMessage(e.what()));
   }
   ApplyConfig(j, path.string(), options);
 }

@@ -211,6 +211,31 @@ TEST(Config, SyntaxErrorNamesTheLine) {
   EXPECT_THROW(LoadConfigFile(test::TempDir() / "missing.json", &o), FileError);
 }
 
+// Every line end counts (CR-only, CRLF, LF): the error names our line and column, never the JSON
+// parser's own position ("line 1, column 49": it counts "\n" only) or its exception name.
+TEST(Config, SyntaxErrorNamesOurLineAndColumnForEveryLineEnd) {
+  for (const std::string end : {"\n", "\r\n", "\r"}) {
+    SCOPED_TRACE(end == "\r" ? "CR" : end == "\n" ? "LF" : "CRLF");
+    const auto path = test::TempDir() / "bad.json";
+    std::ofstream(path, std::ios::binary)
+        << "{" << end << "  \"detector\": {" << end << "    \"check_every\": 3," << end << "  }"
+        << end << "}" << end;
+    try {
+      PipelineOptions o;
+      LoadConfigFile(path, &o);
+      ADD_FAILURE() << "no throw";
+    } catch (const FileError& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(e.line(), 4) << what;
+      EXPECT_NE(what.find(path.string() + ":4: expected valid JSON at column 3, got "),
+                std::string::npos)
+          << what;
+      EXPECT_EQ(what.find("line 1"), std::string::npos) << what;
+      EXPECT_EQ(what.find("json.exception"), std::string::npos) << what;
+    }
+  }
+}
+
 // Found by fuzz_config: a number beyond double range is nlohmann's out_of_range, not a
 // parse_error; it must still be a FileError naming the file.
 TEST(Config, NumberOverflowIsAFileError) {
