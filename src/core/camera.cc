@@ -44,6 +44,13 @@ void CameraIntrinsics::Check() const {
                  "intrinsics: principal point ({}, {}) outside the {}x{} image", cx, cy, width,
                  height);
   }
+  CheckDistortion();
+}
+
+void CameraIntrinsics::CheckDistortion() const {
+  const char* const* names = nullptr;
+  static constexpr const char* kRadtan[] = {"k1", "k2", "p1", "p2", "k3"};
+  static constexpr const char* kEquidistant[] = {"k1", "k2", "k3", "k4"};
   switch (distortion_model) {
     case DistortionModel::kNone:
       SL_CHECK_MSG(distortion.empty(), "intrinsics: model none takes no coefficients, got {}",
@@ -52,13 +59,21 @@ void CameraIntrinsics::Check() const {
     case DistortionModel::kRadialTangential:
       SL_CHECK_MSG(distortion.size() == 4 || distortion.size() == 5,
                    "intrinsics: radtan takes 4 or 5 coefficients, got {}", distortion.size());
+      names = kRadtan;
       break;
     case DistortionModel::kEquidistant:
       SL_CHECK_MSG(distortion.size() == 4, "intrinsics: equidistant takes 4 coefficients, got {}",
                    distortion.size());
+      names = kEquidistant;
       break;
   }
-  for (double d : distortion) SL_CHECK_MSG(std::isfinite(d), "intrinsics: distortion not finite");
+  for (size_t i = 0; i < distortion.size(); ++i) {
+    SL_CHECK_MSG(
+        std::isfinite(distortion[i]) && std::abs(distortion[i]) <= kMaxDistortionCoefficient,
+        "intrinsics: distortion coefficient {} must be finite and within +-{:g} (real "
+        "lenses' are of order 1), got {}",
+        names[i], kMaxDistortionCoefficient, distortion[i]);
+  }
 }
 
 Eigen::Vector2d CameraIntrinsics::Unproject(const Eigen::Vector2d& pixel) const {

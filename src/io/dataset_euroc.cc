@@ -1,5 +1,6 @@
 // The "euroc:DIR" loader (mav0/cam0/data.csv and sensor.yaml, optional
 // mav0/state_groundtruth_estimate0/data.csv) and the sensor.yaml camera reader.
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -11,6 +12,7 @@
 #include "io/text_parsing.h"
 #include "io/yaml_subset.h"
 #include "sparseloop/core/error.h"
+#include "sparseloop/core/logging.h"
 #include "sparseloop/core/rigid3.h"
 #include "sparseloop/io/trajectory_io.h"
 
@@ -54,7 +56,8 @@ EurocCameraInfo ReadEurocSensorYaml(const fs::path& path) {
   info.intrinsics.width = static_cast<int>(res[0]);
   info.intrinsics.height = static_cast<int>(res[1]);
   std::string model = "none";
-  if (auto it = yaml.find("distortion_model"); it != yaml.end()) model = it->second.text;
+  const bool has_model = yaml.count("distortion_model") > 0;
+  if (has_model) model = yaml.at("distortion_model").text;
   size_t expected = 0;
   if (model == "radial-tangential" || model == "radtan") {
     info.intrinsics.distortion_model = DistortionModel::kRadialTangential;
@@ -77,6 +80,21 @@ EurocCameraInfo ReadEurocSensorYaml(const fs::path& path) {
       throw FileError(name, line_of("distortion_coefficients"),
                       fmt::format("{} distortion coefficients for {}", expected, model),
                       fmt::format("{}", n));
+    }
+    try {
+      info.intrinsics.CheckDistortion();
+    } catch (const std::invalid_argument& e) {
+      throw FileError(name, line_of("distortion_coefficients"), "sane distortion_coefficients",
+                      e.what());
+    }
+  } else if (yaml.count("distortion_coefficients")) {
+    // Coefficients without a model would be ignored: the images would be used as if undistorted.
+    const auto d = YamlNumbers(yaml, "distortion_coefficients", name);
+    if (std::any_of(d.begin(), d.end(), [](double v) { return v != 0.0; })) {
+      throw FileError(name, line_of("distortion_coefficients"),
+                      "a distortion_model (radial-tangential or equidistant) for non-zero "
+                      "distortion_coefficients",
+                      has_model ? "distortion_model none" : "no distortion_model");
     }
   }
   try {
@@ -144,7 +162,19 @@ Dataset OpenEuroc(const fs::path& root, const DatasetOptions& options) {
     d.intrinsics = *options.intrinsics;
     d.intrinsics_source = options.intrinsics_name;
     std::error_code ec;
-    if (fs::is_regular_file(yaml, ec)) body_from_cam = ReadEurocSensorYaml(yaml).body_from_cam;
+    if (fs::is_regular_file(yaml, ec)) {
+      const EurocCameraInfo info = ReadEurocSensorYaml(yaml);
+      body_from_cam = info.body_from_cam;
+      const auto& k = info.intrinsics.distortion;
+      if (std::any_of(k.begin(), k.end(), [](double v) { return v != 0.0; }) &&
+          d.intrinsics.distortion_model == DistortionModel::kNone) {
+        Logger().warn(
+            "{}: its {} distortion is not used: {} replaces the camera and has none, so the "
+            "images are taken as undistorted (leave {} out to use sensor.yaml)",
+            yaml.string(), ToString(info.intrinsics.distortion_model), options.intrinsics_name,
+            options.intrinsics_name);
+      }
+    }
   } else {
     RequireFile(yaml,
                 fmt::format("an EuRoC mav0/cam0/sensor.yaml (or {})", options.intrinsics_name));

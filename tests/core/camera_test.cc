@@ -41,5 +41,26 @@ TEST(Camera, CheckRejectsBadFields) {
   EXPECT_NO_THROW(c.Check());
 }
 
+// A distortion coefficient beyond any lens (1e10: a unit or transcription error) is refused
+// naming the coefficient; cv::undistortPoints gave nonsense keypoints without a word.
+TEST(Camera, CheckRejectsAbsurdDistortion) {
+  CameraIntrinsics c = Kitti();
+  c.distortion_model = DistortionModel::kRadialTangential;
+  c.distortion = {1e10, 0.0, 0.0, 0.0};
+  try {
+    c.Check();
+    ADD_FAILURE() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("k1"), std::string::npos) << e.what();
+  }
+  c.distortion = {-0.28, 0.07, 2e-4, 2e-5, -150.0};
+  EXPECT_THROW(c.Check(), std::invalid_argument);
+  c.distortion = {-0.28, 0.07, 2e-4, 2e-5, 1.2};
+  EXPECT_NO_THROW(c.Check());
+  c.distortion_model = DistortionModel::kEquidistant;
+  c.distortion = {0.0035, 0.0007, -0.002, 1e3};
+  EXPECT_THROW(c.Check(), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace sparseloop

@@ -319,30 +319,68 @@ TEST(OpenDatasetEuroc, SyntheticFolderWithBodyToCameraGt) {
   EXPECT_EQ(b.frames[0].gt_world_from_cam->translation, Eigen::Vector3d(1, 2, 3));
 }
 
+// kSensorYaml with `from` replaced by `to`, written as dir/name.
+fs::path EditedSensorYaml(const fs::path& dir, const std::string& name, const std::string& from,
+                          const std::string& to) {
+  std::string yaml = kSensorYaml;
+  yaml.replace(yaml.find(from), from.size(), to);
+  return test::WriteText(dir / name, yaml);
+}
+
+// The message of the FileError `read` throws ("" when none).
+template <typename Read>
+std::string FileErrorOf(Read&& read) {
+  try {
+    read();
+  } catch (const FileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 TEST(EurocSensorYaml, MalformedFilesNameTheLine) {
   const auto dir = test::TempDir();
-  std::string yaml = kSensorYaml;
-  // Unclosed list: reported at the line of its key.
-  auto bad = yaml;
-  bad.replace(bad.find("0.0, 0.0, 0.0, 1.0]"), 19, "0.0, 0.0, 0.0, 1.0");
-  test::WriteText(dir / "a.yaml", bad);
-  EXPECT_FILE_ERROR(ReadEurocSensorYaml(dir / "a.yaml"), dir / "a.yaml", 6);
-  bad = yaml;
-  bad.replace(bad.find("[458.654, 457.296, 367.215, 248.375]"), 36, "[458.654, 457.296, 367.215]");
-  test::WriteText(dir / "b.yaml", bad);
-  EXPECT_FILE_ERROR(ReadEurocSensorYaml(dir / "b.yaml"), dir / "b.yaml", 13);
-  bad = yaml;
-  bad.replace(bad.find("radial-tangential"), 17, "fisheye");
-  test::WriteText(dir / "c.yaml", bad);
-  EXPECT_FILE_ERROR(ReadEurocSensorYaml(dir / "c.yaml"), dir / "c.yaml", 14);
-  bad = yaml;
-  bad.replace(bad.find("0.0, -1.0, 0.0, 0.5"), 19, "0.0, -2.0, 0.0, 0.5");
-  test::WriteText(dir / "d.yaml", bad);
-  EXPECT_FILE_ERROR(ReadEurocSensorYaml(dir / "d.yaml"), dir / "d.yaml", 6);
-  bad = yaml;
-  bad.replace(bad.find("0.07395907"), 10, "0.07x");
-  test::WriteText(dir / "e.yaml", bad);
-  EXPECT_FILE_ERROR(ReadEurocSensorYaml(dir / "e.yaml"), dir / "e.yaml", 15);
+  struct Case {
+    const char* from;
+    const char* to;
+    int line;
+  };
+  const Case cases[] = {
+      // Unclosed list: reported at the line of its key.
+      {"0.0, 0.0, 0.0, 1.0]", "0.0, 0.0, 0.0, 1.0", 6},
+      {"[458.654, 457.296, 367.215, 248.375]", "[458.654, 457.296, 367.215]", 13},
+      {"radial-tangential", "fisheye", 14},
+      {"0.0, -1.0, 0.0, 0.5", "0.0, -2.0, 0.0, 0.5", 6},
+      {"0.07395907", "0.07x", 15},
+  };
+  int k = 0;
+  for (const Case& c : cases) {
+    const fs::path path = EditedSensorYaml(dir, std::to_string(k++) + ".yaml", c.from, c.to);
+    EXPECT_FILE_ERROR(ReadEurocSensorYaml(path), path, c.line);
+  }
+}
+
+// A distortion sparseloop cannot use as written is refused naming the key's line: a coefficient
+// beyond any lens (1e10), or non-zero coefficients without a distortion_model (they were
+// ignored). All-zero coefficients without a model are no distortion.
+TEST(EurocSensorYaml, DistortionIsCheckedNamingTheKey) {
+  const auto dir = test::TempDir();
+  const fs::path huge = EditedSensorYaml(dir, "a.yaml", "-0.28340811", "1e10");
+  EXPECT_FILE_ERROR(ReadEurocSensorYaml(huge), huge, 15);
+  EXPECT_NE(FileErrorOf([&] { ReadEurocSensorYaml(huge); }).find("distortion_coefficients"),
+            std::string::npos);
+  const fs::path no_model =
+      EditedSensorYaml(dir, "b.yaml", "distortion_model: radial-tangential", "rate: 1");
+  EXPECT_FILE_ERROR(ReadEurocSensorYaml(no_model), no_model, 15);
+  EXPECT_NE(FileErrorOf([&] { ReadEurocSensorYaml(no_model); }).find("no distortion_model"),
+            std::string::npos);
+  const fs::path none = EditedSensorYaml(dir, "c.yaml", "radial-tangential", "none");
+  EXPECT_FILE_ERROR(ReadEurocSensorYaml(none), none, 15);
+  std::string zeros = test::ReadText(none);
+  zeros.replace(zeros.find("[-0.28340811"), 53, "[0, 0, 0, 0]");
+  test::WriteText(dir / "d.yaml", zeros);
+  EXPECT_EQ(ReadEurocSensorYaml(dir / "d.yaml").intrinsics.distortion_model,
+            DistortionModel::kNone);
 }
 
 TEST(EurocSensorYaml, RealSensorLeft) {

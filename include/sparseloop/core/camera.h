@@ -13,6 +13,11 @@ enum class DistortionModel {
   kEquidistant,       // Kannala-Brandt / EuRoC "equidistant": k1 k2 k3 k4
 };
 
+// Largest |distortion coefficient| accepted: real lenses' radtan / equidistant coefficients are
+// of order 1 (EuRoC's radtan k1 = -0.28); beyond 100 a coefficient is a unit or transcription
+// error, which undistortion would turn into keypoints far outside the image without a word.
+inline constexpr double kMaxDistortionCoefficient = 100.0;
+
 struct CameraIntrinsics {
   double fx = 0.0;  // focal length, pixels
   double fy = 0.0;  // focal length, pixels
@@ -25,8 +30,11 @@ struct CameraIntrinsics {
 
   Eigen::Matrix3d K() const;
   // Throws std::invalid_argument naming the first bad field (focal length not in (0, 1e7] px,
-  // principal point outside the image or beyond 1e7 px, wrong number of distortion coefficients).
+  // principal point outside the image or beyond 1e7 px, and CheckDistortion's).
   void Check() const;
+  // The distortion part of Check(): the model's number of coefficients, each finite and within
+  // +-kMaxDistortionCoefficient (named: "k1", "p2", ...).
+  void CheckDistortion() const;
   // Pixel -> normalised image coordinates, ignoring distortion.
   Eigen::Vector2d Unproject(const Eigen::Vector2d& pixel) const;
   // Camera-frame point (z > 0) -> pixel, ignoring distortion.
