@@ -92,7 +92,9 @@ void AddRenderFlags(CLI::App& app, RenderFlags* f) {
   app.add_option("--step", f->step, "render every step-th pose")
       ->check(IntegerAtLeast(1))
       ->capture_default_str();
-  app.add_option("--seed", f->seed, "seed of the world, noise and drift")->capture_default_str();
+  app.add_option("--seed", f->seed, "seed of the world, noise and drift")
+      ->check(IntegerAtLeast(0))  // -1 was read as 18446744073709551615
+      ->capture_default_str();
   app.add_option("--threads", f->threads, "frames rendered in parallel")
       ->check(IntegerAtLeast(1))
       ->capture_default_str();

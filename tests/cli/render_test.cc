@@ -572,5 +572,15 @@ TEST(RenderCli, TimesTxtKeepsEveryTimeOfTheTrajectory) {
   EXPECT_NEAR(d.frames[3].timestamp - d.frames[0].timestamp, 0.1, 1e-6);
 }
 
+// --seed takes a non-negative integer (-1 was stored as 18446744073709551615).
+TEST(RenderCli, ANegativeSeedIsRefused) {
+  const auto dir = TempDir();
+  const CliResult r = RunCli({"render", "--world", "aerial", "--frames", "3", "--seed", "-1",
+                              "--out", (dir / "r").string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--seed"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "r"));
+}
+
 }  // namespace
 }  // namespace sparseloop::test
