@@ -10,7 +10,7 @@ Usage: report.py DIR [--false-loop-distance METRES] [--sparseloop BIN]
                          associated or scored here: `sparseloop eval` is the one definition
                          (docs/METRICS.md).
 
-Reads (every file optional except at least one trajectory), each as `sparseloop eval` reads text
+Reads (every file optional except summary.json and at least one trajectory), each as `sparseloop eval` reads text
 files (a UTF-8 byte order mark, LF, CRLF or lone CR line ends; bytes that are not UTF-8 read as
 U+FFFD):
   poses_gt.txt | poses.txt     ground truth (KITTI 12 numbers, or index + 12, or TUM)
@@ -228,9 +228,13 @@ def make_report(args):
     d = args.dir
     fp = lambda name: os.path.join(d, name)  # noqa: E731
     sections, notes = [], []
-    summary = {}
-    if os.path.isfile(fp("summary.json")):
-        summary = read_summary(fp("summary.json"))
+    # A run output holds summary.json; a dataset folder does not, and the report's files must not
+    # be written into it.
+    if not os.path.isfile(fp("summary.json")):
+        raise ReportError(f"{d}: expected a run output folder (holding summary.json, as `sparseloop "
+                          "run` / `detect` write it), got a folder without summary.json (a "
+                          "dataset? report the --out folder of its run)")
+    summary = read_summary(fp("summary.json"))
     # The run's own threshold, so the report agrees with summary.json.
     false_distance = args.false_loop_distance
     if false_distance is None:

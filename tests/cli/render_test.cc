@@ -437,9 +437,28 @@ TEST(ReportCli, MissingFolderOrTrajectoryFails) {
   EXPECT_EQ(RunCli({"report", "/nonexistent/run"}).exit_code, 2);
   if (cli::FindPython().empty()) GTEST_SKIP() << "no python3 with matplotlib";
   const auto empty = OutDir("empty");
+  WriteText(empty / "summary.json", "{}\n");
   const CliResult r = RunCli({"report", empty.string()});
   EXPECT_EQ(r.exit_code, 2);  // a folder without a trajectory is bad input
   EXPECT_NE(r.err.find("no trajectory"), std::string::npos) << r.err;
+}
+
+// A folder without summary.json (a dataset, not a run output) is refused before anything is
+// written into it: report.html and its plots went into the dataset's folder.
+TEST(ReportCli, AFolderWithoutSummaryJsonIsRefused) {
+  if (cli::FindPython().empty()) {
+    if (InCi()) FAIL() << "python3 with matplotlib required in CI";
+    GTEST_SKIP() << "no python3 with matplotlib";
+  }
+  const auto run = OutDir("run");
+  FabricateRun(run);
+  const auto dataset = OutDir("dataset");
+  fs::copy_file(run / "poses_gt.txt", dataset / "poses.txt");
+  const CliResult r = RunCli({"report", dataset.string()});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("got a folder without summary.json"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dataset / "report.html"));
+  EXPECT_FALSE(fs::exists(dataset / "report_topview.png"));
 }
 
 // The report reads the run's files as `eval` reads them: a BOM, CR-only or CRLF line ends, an
