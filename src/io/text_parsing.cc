@@ -68,6 +68,7 @@ std::vector<std::string_view> SplitWhitespace(std::string_view line) {
   auto is_ws = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; };
   while (i < line.size()) {
     while (i < line.size() && is_ws(line[i])) ++i;
+    if (i < line.size() && line[i] == '#') break;  // a trailing comment
     size_t j = i;
     while (j < line.size() && !is_ws(line[j])) ++j;
     if (j > i) out.push_back(line.substr(i, j - i));

@@ -38,6 +38,9 @@ class TextFile {
 
 std::string_view Trim(std::string_view s);
 bool IsBlankOrComment(std::string_view line);
+// The whitespace-separated tokens of a line, up to a token that starts with '#': a trailing
+// comment ("1 0 0 ... 1  # start") ends the data, as a '#' line is a comment. A '#' inside a token
+// ("1#2") is part of it.
 std::vector<std::string_view> SplitWhitespace(std::string_view line);
 // Splits on ',' and trims each field.
 std::vector<std::string_view> SplitComma(std::string_view line);

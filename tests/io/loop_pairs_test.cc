@@ -19,6 +19,14 @@ TEST(LoopPairs, ReadsPairsSkippingCommentsAndOrderingQueryLater) {
   EXPECT_EQ(pairs[2], (LoopPair{100, 99}));
 }
 
+TEST(LoopPairs, ATrailingCommentEndsTheLine) {
+  const auto path =
+      test::WriteText(test::TempDir() / "pairs.txt", "10 2  # revisit of the start\n7 3\t#\n");
+  const auto pairs = ReadLoopPairs(path);
+  ASSERT_EQ(pairs.size(), 2u);
+  EXPECT_EQ(pairs[1], (LoopPair{7, 3}));
+}
+
 TEST(LoopPairs, CommentOnlyFileHasNoPairs) {
   const auto path = test::WriteText(test::TempDir() / "pairs.txt", "# no loops here\n");
   EXPECT_TRUE(ReadLoopPairs(path).empty());

@@ -398,6 +398,20 @@ TEST(TrajectoryWrite, CloseTimestampsRoundTripOrAreRefusedUpFront) {
   refused(1e10, "frame 3");
 }
 
+// A '#' that starts a token ends the data of a line ("1 0 0 ... 1  # start"), as on a line of its
+// own; one inside a token is still an error.
+TEST(TrajectoryRead, ATrailingCommentEndsTheLine) {
+  const auto dir = test::TempDir();
+  const auto tum = test::WriteText(
+      dir / "t.txt", "0 0 0 0 0 0 0 1 # start\n1 1 0 0 0 0 0 1\t#\n2 2 0 0 0 0 0 1 #x #y\n");
+  EXPECT_EQ(DetectTrajectoryFormat(tum), F::kTum);
+  EXPECT_EQ(ReadTrajectory(tum).size(), 3u);
+  const auto kitti = test::WriteText(dir / "k.txt", "1 0 0 0 0 1 0 0 0 0 1 0 # frame 0\n");
+  EXPECT_EQ(ReadTrajectory(kitti).size(), 1u);
+  const auto glued = test::WriteText(dir / "g.txt", "0 0 0 0 0 0 0 1#start\n");
+  EXPECT_THROW(ReadTrajectory(glued, F::kTum), FileError);
+}
+
 TEST(TrajectoryWrite, KittiRoundTrip) {
   auto traj = RandomTrajectory(150, 2, 0.0);
   traj.has_timestamps = false;
