@@ -76,10 +76,6 @@ TEST(LoopDetectorReal, CastleRingClosesWithDefaults) {
   EXPECT_LT(centre_err, 0.05 * gt.translation.norm() + 0.05);
 }
 
-// The two-view estimate alone (local map off): the rotation target holds, the direction
-// one does not (a 0.8 m baseline to 29 -> 01 against a facade 10-20 m away; the Huber-Sampson
-// optimum of its K = 300 inliers is itself 18 deg from the GT). Kept as the measured baseline of
-// what the local map buys.
 // The observation behind small K: with 50 response-ranked features per view the true
 // loop 29-01 has clearly more essential-matrix inliers than the false pairs 29-15 and 20-05
 // (about 23 vs <= 8; every ranking and K: bench/detector_accuracy, castle_pairs).
@@ -108,6 +104,10 @@ TEST(LoopDetectorReal, CastleTrueLoopOutscoresFalsePairsAtK50) {
   EXPECT_GT(true_loop, 2 * false_pairs) << true_loop << " vs " << false_pairs;
 }
 
+// The two-view estimate alone (local map off): the rotation target holds, the direction
+// one does not (a 0.8 m baseline to 29 -> 01 against a facade 10-20 m away; the Huber-Sampson
+// optimum of its K = 300 inliers is itself 18 deg from the GT). Kept as the measured baseline of
+// what the local map buys.
 TEST(LoopDetectorReal, CastleTwoViewOnlyRotationAccurateDirectionNot) {
   SL_REQUIRE_DATA("castle_p30_768");
   LoopDetector::Options o;
