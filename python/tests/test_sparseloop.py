@@ -311,3 +311,14 @@ def test_written_times_read_back_distinct(tmp_path):
         sparseloop.write_trajectory(tmp_path / "e.csv", poses, [1e10, 1e10 + 1, 1e10 + 2],
                                     format="euroc")
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_a_tiny_image_is_refused_with_the_minimum_size():
+    """A 1x1 image came back as OpenCV's raw resize assertion: it is a ValueError giving the
+    size and the minimum the feature extraction takes."""
+    closing = sparseloop.LoopClosing(optimize=False)
+    with pytest.raises(ValueError, match=r"image of 1x1 pixels is too small: expected at least 32x32"):
+        closing.add_keyframe(id=1, timestamp=0.0, image=np.zeros((1, 1), np.uint8),
+                             intrinsics=(1, 1, 0.5, 0.5), pose=np.eye(4))
+    closing.add_keyframe(id=1, timestamp=0.0, image=np.zeros((32, 32), np.uint8),
+                         intrinsics=(1, 1, 0.5, 0.5), pose=np.eye(4))

@@ -62,6 +62,17 @@ void GradientMaskOptions::Check() const {
                "gradient.dilate_radius must be in [0, 64] pixels, got {}", dilate_radius);
 }
 
+int FeatureOptions::MinImageSide() const {
+  // The pyramid resizes each level to cvRound(side / scale^l) pixels (as cv::ORB): a level of 0
+  // pixels is an OpenCV assertion, and an image smaller than the patch holds no feature.
+  constexpr int kPatchSide = 31;
+  const float top = static_cast<float>(std::pow(static_cast<float>(orb_scale_factor),
+                                                static_cast<double>(std::max(orb_levels, 1) - 1)));
+  int side = kPatchSide + 1;
+  while (cvRound(side / top) < 1) ++side;
+  return side;
+}
+
 void FeatureOptions::Check() const {
   SL_CHECK_MSG(max_features >= 5 && max_features <= 10000,
                "features.max_features (K) must be in [5, 10000], got {}", max_features);

@@ -537,6 +537,12 @@ void LoopDetector::Impl::ValidateImageInput(const KeyframeInput& input) const {
   SL_CHECK_MSG(!input.image.empty(), "keyframe {}: image must not be empty", input.id);
   SL_CHECK_MSG(input.image.type() == CV_8UC1,
                "keyframe {}: image must be 8-bit grayscale (CV_8UC1)", input.id);
+  const int min_side = options_.features.MinImageSide();
+  SL_CHECK_MSG(input.image.cols >= min_side && input.image.rows >= min_side,
+               "keyframe {}: image of {}x{} pixels is too small: expected at least {}x{} (ORB's "
+               "31-pixel patch and {} pyramid levels of scale {})",
+               input.id, input.image.cols, input.image.rows, min_side, min_side,
+               options_.features.orb_levels, options_.features.orb_scale_factor);
   SL_CHECK_MSG((input.intrinsics.width == 0 || input.image.cols == input.intrinsics.width) &&
                    (input.intrinsics.height == 0 || input.image.rows == input.intrinsics.height),
                "keyframe {}: image size {}x{} does not match the intrinsics {}x{}", input.id,

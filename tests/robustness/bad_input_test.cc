@@ -93,6 +93,32 @@ TEST_F(BadInput, ZeroSizeImage) {
   ExpectRejected(in, "image must not be empty");
 }
 
+// A 1x1 image reached OpenCV's pyramid resize and came back as its raw assertion (the ROS node
+// aborted on it): below ORB's patch, or a pyramid level of 0 pixels, the image is refused.
+TEST_F(BadInput, TinyImage) {
+  KeyframeInput in = ValidInput(3);
+  in.intrinsics = test::PinholeCamera(1.0, 0, 0, 0.5, 0.5);  // no image size to compare with
+  in.image = cv::Mat(31, 400, CV_8UC1, cv::Scalar(0));
+  try {
+    detector_.Process(in);
+    ADD_FAILURE() << "a 400x31 image was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("image of 400x31 pixels is too small"), std::string::npos)
+        << e.what();
+  }
+  in.image = cv::Mat(1, 1, CV_8UC1, cv::Scalar(0));
+  ExpectRejected(in, "keyframe 3: image of 1x1 pixels is too small: expected at least 32x32");
+  in.id = 101;
+  in.timestamp = 1000.0;
+  in.image = cv::Mat(32, 32, CV_8UC1, cv::Scalar(0));
+  EXPECT_NO_THROW(detector_.Process(in));
+  FeatureOptions coarse;
+  EXPECT_EQ(coarse.MinImageSide(), 32);
+  coarse.orb_levels = 16;
+  coarse.orb_scale_factor = 2.0;  // the top level is cvRound(side / 32768) pixels (0.5 -> 0)
+  EXPECT_EQ(coarse.MinImageSide(), 16385);
+}
+
 TEST_F(BadInput, WrongPixelType) {
   KeyframeInput in = ValidInput(3);
   cv::cvtColor(in.image, in.image, cv::COLOR_GRAY2BGR);

@@ -162,6 +162,31 @@ TEST(NodeCore, LateDuplicateAndUndecodableImagesAreDroppedAndCounted) {
   EXPECT_TRUE(warnings.Any("100 bytes of data"));
 }
 
+// A 1x1 image aborted the node (OpenCV's assertion escaped the worker thread): it is dropped with
+// the detector's reason, and the node goes on.
+TEST(NodeCore, ATinyImageIsDroppedWithAWarning) {
+  Warnings warnings;
+  NodeCore core(NodeParams{}, warnings.Callbacks());
+  CameraInfoMessage info;
+  info.width = 1;
+  info.height = 1;
+  const double k[9] = {1, 0, 0.5, 0, 1, 0.5, 0, 0, 1};
+  std::copy(k, k + 9, info.k);
+  core.AddCameraInfo(info);
+  ImageData tiny;
+  tiny.header.stamp = 1.0;
+  tiny.header.encoding = "mono8";
+  tiny.header.width = 1;
+  tiny.header.height = 1;
+  tiny.step = 1;
+  tiny.data = {0};
+  core.AddImage(tiny);
+  const auto summary = nlohmann::json::parse(core.Finish());
+  EXPECT_EQ(summary["keyframes"], 0);
+  EXPECT_EQ(summary["dropped_bad"], 1);
+  EXPECT_TRUE(warnings.Any("image of 1x1 pixels is too small")) << warnings.lines.size();
+}
+
 TEST(NodeCore, BadPosesAndCameraInfoAreIgnoredWithAWarning) {
   Warnings warnings;
   NodeCore core(NodeParams{}, warnings.Callbacks());

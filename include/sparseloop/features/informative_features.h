@@ -58,6 +58,9 @@ struct FeatureOptions {
   bool use_gradient_mask = true;  // restrict to the high-gradient area when no mask is given
   GradientMaskOptions gradient;   // semi-dense selection parameters
   void Check() const;
+  // Smallest image side the extraction takes: ORB's 31-pixel patch plus one (as the dataset
+  // readers' kMinImageSide), and every pyramid level at least 1 pixel (orb_levels, scale factor).
+  int MinImageSide() const;
 };
 
 // 256-bit ORB descriptor as four 64-bit words (the packed record's type).
