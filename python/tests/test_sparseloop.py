@@ -322,3 +322,15 @@ def test_a_tiny_image_is_refused_with_the_minimum_size():
                              intrinsics=(1, 1, 0.5, 0.5), pose=np.eye(4))
     closing.add_keyframe(id=1, timestamp=0.0, image=np.zeros((32, 32), np.uint8),
                          intrinsics=(1, 1, 0.5, 0.5), pose=np.eye(4))
+
+
+def test_an_odometry_covariance_too_small_to_invert_is_refused():
+    """Variances of 1e-30 were taken and the background solve aborted the interpreter at
+    finish(): the argument is refused, naming it and the floor."""
+    closing = sparseloop.LoopClosing()
+    closing.add_keyframe(**blank(0, pose=np.eye(4)))
+    for tiny in (1e-30, 1e-308):
+        with pytest.raises(ValueError, match=r"odometry_covariance: .*eigenvalues of at least 1e-18"):
+            closing.add_keyframe(**blank(1, pose=np.eye(4)), odometry_covariance=np.eye(6) * tiny)
+    closing.add_keyframe(**blank(1, pose=np.eye(4)), odometry_covariance=np.eye(6) * 1e-4)
+    closing.finish()

@@ -3,9 +3,9 @@
 #include <cmath>
 
 #include <fmt/format.h>
-#include <Eigen/Cholesky>
 
 #include "io/text_parsing.h"
+#include "sparseloop/core/covariance.h"
 #include "sparseloop/core/error.h"
 
 namespace sparseloop {
@@ -43,10 +43,8 @@ std::vector<StepCovariance> ReadStepCovariances(const std::filesystem::path& pat
       throw FileError(name, line.number, "a symmetric covariance",
                       "entries (r, c) and (c, r) differ");
     }
-    if (Eigen::LLT<Eigen::Matrix<double, 6, 6>>(c).info() != Eigen::Success) {
-      throw FileError(name, line.number, "a positive definite covariance",
-                      "a matrix with a zero or negative eigenvalue");
-    }
+    if (const auto problem = CheckCovariance(c))
+      throw FileError(name, line.number, problem->expected, problem->got);
     out.push_back(s);
   }
   return out;

@@ -13,6 +13,7 @@
 #include "edge_error.h"
 #include "manifolds.h"
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/covariance.h"
 #include "sparseloop/core/logging.h"
 #include "sparseloop/core/timer.h"
 
@@ -178,6 +179,10 @@ Matrix7d OdometryWeighting::InformationFromCovariance(
   SL_CHECK_MSG(llt.info() == Eigen::Success && covariance.diagonal().minCoeff() > 0,
                "odometry covariance must be positive definite (smallest diagonal element {})",
                covariance.diagonal().minCoeff());
+  // A usable inverse too: tiny variances (1e-30) gave an information the chain reduction's
+  // Cholesky could not factor, in the optimizer thread.
+  const auto problem = CheckCovariance(covariance);
+  SL_CHECK_MSG(!problem, "odometry covariance: {}", problem ? problem->Message() : "");
   Matrix7d information = Matrix7d::Zero();
   information.topLeftCorner<6, 6>() = llt.solve(Eigen::Matrix<double, 6, 6>::Identity());
   information.topLeftCorner<6, 6>() =

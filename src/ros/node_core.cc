@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bag/message_convert.h"
+#include "sparseloop/core/covariance.h"
 #include "sparseloop/core/error.h"
 #include "sparseloop/core/time_association.h"
 #include "sparseloop/io/atomic_file.h"
@@ -157,9 +158,12 @@ std::optional<std::array<double, 36>> StepCovarianceFromAbsolute(
   Matrix6 to_prev = Matrix6::Zero();  // world axes -> the previous keyframe's axes
   to_prev.topLeftCorner<3, 3>() = q.normalized().toRotationMatrix().transpose();
   to_prev.bottomRightCorner<3, 3>() = to_prev.topLeftCorner<3, 3>();
-  const Matrix6 step = to_prev * growth * to_prev.transpose();
+  const Matrix6 rotated = to_prev * growth * to_prev.transpose();
+  const Matrix6 symmetric = 0.5 * (rotated + rotated.transpose());
+  // One the graph can use (eigenvalues >= 1e-18, as LoopClosing checks): else the default model.
+  if (CheckCovariance(symmetric)) return std::nullopt;
   std::array<double, 36> out;
-  Eigen::Map<Matrix6>(out.data()) = 0.5 * (step + step.transpose());
+  Eigen::Map<Matrix6>(out.data()) = symmetric;
   return out;
 }
 

@@ -97,9 +97,21 @@ void BackgroundOptimizer::WaitForIdle() {
   idle_cv_.wait(lock, [&] { return queue_.empty() && !working_; });
 }
 
+std::string BackgroundOptimizer::failure() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return failure_;
+}
+
+void BackgroundOptimizer::Fail(const std::string& what) {
+  Logger().error("background optimizer: pose graph solve failed, no further solves: {}", what);
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (failure_.empty()) failure_ = what;
+}
+
 void BackgroundOptimizer::Run() {
   bool end = false;
   bool pending = false;  // loops added since the last completed solve
+  bool failed = false;   // a failure was recorded: messages are drained, nothing is solved
   // A solve is due: pending loops, and solving while running or at the end of the stream.
   auto due = [&] { return pending && (options_.solve_while_running || end); };
   while (true) {
@@ -120,30 +132,53 @@ void BackgroundOptimizer::Run() {
       interrupt_.store(false, std::memory_order_release);
       lock.unlock();
       not_full_.notify_all();
-      for (const Message& m : batch) Apply(m, &end, &pending);
-    }
-    if (due() && graph_.num_vertices() >= 2) {
-      const size_t num_loops = graph_.loops().size();
-      PoseGraphSummary summary = graph_.Optimize(options_.solve, &interrupt_);
-      solved_ = true;
-      ++num_solves_;
-#if defined(__GLIBC__)
-      if (options_.release_memory_after_solve) malloc_trim(0);
-#endif
-      if (summary.status == PoseGraphStatus::kInterrupted) {
-        ++num_interrupted_;
-        continue;  // re-solve with the newer loops (warm start from the partial solution)
+      for (const Message& m : batch) {
+        if (failed) {
+          end = end || std::holds_alternative<EndMsg>(m);
+          continue;
+        }
+        try {
+          Apply(m, &end, &pending);
+        } catch (const std::exception& e) {
+          Fail(e.what());
+          failed = true;
+          end = end || std::holds_alternative<EndMsg>(m);
+        }
       }
-      pending = false;
-      if (callback_) {
-        PoseCorrection correction;
-        correction.revision = ++revision_;
-        correction.num_loops = num_loops;
-        correction.ids = graph_.VertexIds();
-        correction.world_from_keyframe.reserve(correction.ids.size());
-        for (int64_t id : correction.ids) correction.world_from_keyframe.push_back(graph_.Pose(id));
-        correction.summary = std::move(summary);
-        callback_(correction);
+    }
+    if (failed) pending = false;
+    // No exception leaves this thread (std::terminate): a solve that throws (e.g. a chain
+    // covariance Cholesky cannot factor) is a failure Finish() reports, and nothing is solved
+    // after it.
+    if (due() && graph_.num_vertices() >= 2) {
+      try {
+        const size_t num_loops = graph_.loops().size();
+        PoseGraphSummary summary = graph_.Optimize(options_.solve, &interrupt_);
+        solved_ = true;
+        ++num_solves_;
+#if defined(__GLIBC__)
+        if (options_.release_memory_after_solve) malloc_trim(0);
+#endif
+        if (summary.status == PoseGraphStatus::kInterrupted) {
+          ++num_interrupted_;
+          continue;  // re-solve with the newer loops (warm start from the partial solution)
+        }
+        pending = false;
+        if (callback_) {
+          PoseCorrection correction;
+          correction.revision = ++revision_;
+          correction.num_loops = num_loops;
+          correction.ids = graph_.VertexIds();
+          correction.world_from_keyframe.reserve(correction.ids.size());
+          for (int64_t id : correction.ids)
+            correction.world_from_keyframe.push_back(graph_.Pose(id));
+          correction.summary = std::move(summary);
+          callback_(correction);
+        }
+      } catch (const std::exception& e) {
+        Fail(e.what());
+        failed = true;
+        pending = false;
       }
     } else if (due()) {
       pending = false;  // fewer than two vertices: nothing to solve

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "sparseloop/core/check.h"
+#include "sparseloop/core/error.h"
 #include "sparseloop/core/logging.h"
 
 namespace sparseloop {
@@ -26,7 +27,13 @@ LoopClosing::LoopClosing(Options options, CorrectionCallback on_correction)
   }
 }
 
-LoopClosing::~LoopClosing() { Finish(); }
+LoopClosing::~LoopClosing() {
+  try {
+    Finish();
+  } catch (const std::exception&) {
+    // Already logged by the optimizer thread; a destructor must not throw.
+  }
+}
 
 void LoopClosing::AddPriorKeyframes(int64_t session, std::vector<KeyframeRecord> records) {
   std::lock_guard<std::mutex> api_lock(api_mutex_);
@@ -112,6 +119,16 @@ void LoopClosing::Finish() {
   if (finished_) return;
   if (optimizer_) optimizer_->Finish();
   finished_ = true;
+  ThrowIfOptimizerFailed();
+}
+
+void LoopClosing::ThrowIfOptimizerFailed() const {
+  const std::string failure = optimizer_ ? optimizer_->failure() : std::string();
+  if (!failure.empty())
+    throw Error(
+        fmt::format("pose graph optimisation failed: {} (corrections are those of the last "
+                    "solve before it)",
+                    failure));
 }
 
 bool LoopClosing::finished() const { return finished_; }
@@ -119,6 +136,7 @@ bool LoopClosing::finished() const { return finished_; }
 void LoopClosing::WaitForIdle() {
   std::lock_guard<std::mutex> api_lock(api_mutex_);
   if (optimizer_ && !finished_) optimizer_->WaitForIdle();
+  ThrowIfOptimizerFailed();
 }
 
 void LoopClosing::OnCorrection(const PoseCorrection& correction) {

@@ -54,6 +54,11 @@ TEST(StepCovariance, MalformedLinesNameFileAndLine) {
       {"0" + asym36 + "\n", 1, "symmetric"},
       {"0 -1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n", 1, "positive definite"},
       {"0 1 2 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n", 1, "positive definite"},
+      // Variances of 1e-30 (or 1e-308): an information the solver cannot use (it aborted).
+      {"0 1e-30 0 0 0 0 0 1e-30 0 0 0 0 1e-30 0 0 0 1e-30 0 0 1e-30 0 1e-30\n", 1,
+       "eigenvalues of at least 1e-18"},
+      {"0 1e-308 0 0 0 0 0 1e-308 0 0 0 0 1e-308 0 0 0 1e-308 0 0 1e-308 0 1e-308\n", 1,
+       "eigenvalues of at least 1e-18"},
   };
   const auto dir = test::TempDir();
   int k = 0;

@@ -3,6 +3,7 @@
 #include <atomic>
 #include <mutex>
 #include <random>
+#include <stdexcept>
 #include <thread>
 
 #include "sparseloop/runtime/background_optimizer.h"
@@ -178,6 +179,26 @@ TEST(BackgroundOptimizer, FinishWithoutLoopsDeliversNothingAndIsIdempotent) {
   EXPECT_EQ(calls, 0);
   EXPECT_EQ(optimizer.graph().num_vertices(), 2u);
   EXPECT_EQ(optimizer.num_solves(), 0u);
+}
+
+// An exception in the background thread (a solve whose chain reduction's Cholesky failed on a
+// covariance of 1e-30, a callback that throws) was std::terminate: it is caught, logged and
+// reported by failure(), and nothing is solved after it.
+TEST(BackgroundOptimizer, AFailingSolveIsReportedNotTerminate) {
+  const Data d = MakeData();
+  int calls = 0;
+  BackgroundOptimizerOptions options = Options();
+  options.solve_while_running = false;
+  BackgroundOptimizer optimizer(options, [&](const PoseCorrection&) {
+    ++calls;
+    throw std::runtime_error("callback failed");
+  });
+  for (size_t i = 0; i < d.raw.size(); ++i)
+    optimizer.PushKeyframe(static_cast<int64_t>(i), d.raw[i]);
+  for (const LoopConstraint& l : d.loops) optimizer.PushLoop(l);
+  optimizer.Finish();
+  EXPECT_EQ(optimizer.failure(), "callback failed");
+  EXPECT_EQ(calls, 1);
 }
 
 TEST(PoseGraphInterrupt, RaisedFlagStopsTheSolve) {

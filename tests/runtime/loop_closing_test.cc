@@ -381,6 +381,12 @@ TEST(LoopClosing, BadKeyframeThrowsAndLeavesStateIntact) {
   expect_rejected(bad_cov, "positive definite");
   (*bad_cov.odometry_covariance)(2, 2) = std::nan("");
   expect_rejected(bad_cov, "finite");
+  // Tiny variances: an information of 1e30 the background solve could not use (it aborted).
+  bad_cov.odometry_covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-30;
+  expect_rejected(bad_cov, "expected covariance eigenvalues of at least 1e-18");
+  bad_cov.odometry_covariance = Eigen::Matrix<double, 6, 6>::Identity();
+  (*bad_cov.odometry_covariance)(5, 5) = 1e-14;  // 1e14 between the largest and the smallest
+  expect_rejected(bad_cov, "within a factor 1e+12");
 
   const LoopEvent ok = closing.AddKeyframe(BlankKeyframe(7, PoseAt(2)));
   EXPECT_TRUE(ok.in_graph);

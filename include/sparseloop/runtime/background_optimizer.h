@@ -16,6 +16,7 @@
 #include <functional>
 #include <mutex>
 #include <optional>
+#include <string>
 #include <thread>
 #include <variant>
 #include <vector>
@@ -75,6 +76,10 @@ class BackgroundOptimizer {
   // drained. Returns at once after Finish(). Must not be called from the callback.
   void WaitForIdle();
 
+  // The first failure of the background thread (a solve or a message that threw: it is caught,
+  // logged, and no later solve runs), "" while there is none. Thread-safe.
+  std::string failure() const;
+
   // Counters (for tests and logs).
   uint64_t num_solves() const { return num_solves_.load(); }
   uint64_t num_interrupted() const { return num_interrupted_.load(); }
@@ -93,6 +98,7 @@ class BackgroundOptimizer {
   bool Push(Message message);
   void Run();
   void Apply(const Message& message, bool* end, bool* new_loops);
+  void Fail(const std::string& what);  // logs and records the first failure
 
   BackgroundOptimizerOptions options_;
   Callback callback_;
@@ -102,7 +108,7 @@ class BackgroundOptimizer {
   int64_t last_id_ = 0;
   bool solved_ = false;  // a solve (even an interrupted one) has moved the graph's estimates
 
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable not_empty_;
   std::condition_variable not_full_;
   std::condition_variable idle_cv_;
@@ -114,6 +120,7 @@ class BackgroundOptimizer {
   std::atomic<uint64_t> num_interrupted_{0};
   uint64_t revision_ = 0;
   bool finished_ = false;
+  std::string failure_;  // guarded by mutex_
   std::thread thread_;
 };
 

@@ -113,14 +113,16 @@ class LoopClosing {
 
   // End of stream: queued keyframes and loops are applied, the final solve runs if loops arrived
   // since the last completed one (its correction is delivered as any other), the background
-  // thread is joined. Idempotent; the destructor calls it.
+  // thread is joined. Idempotent; the destructor calls it. Throws sparseloop::Error when a solve
+  // failed in the background thread (logged there; nothing is solved after it).
   void Finish();
   bool finished() const;
 
   // Blocks until every keyframe and loop added so far is in the graph and no solve is running or
   // due (corrections of every solve delivered). For tests and for a caller that wants the
   // freshest correction now; with optimizer.solve_while_running = false nothing is solved before
-  // Finish(). Returns at once after Finish() or without optimize.
+  // Finish(). Returns at once after Finish() or without optimize. Throws sparseloop::Error as
+  // Finish() does.
   void WaitForIdle();
 
   // Thread-safe polls of the latest completed solve.
@@ -145,6 +147,7 @@ class LoopClosing {
 
  private:
   void OnCorrection(const PoseCorrection& correction);
+  void ThrowIfOptimizerFailed() const;  // sparseloop::Error with the optimizer's failure
 
   Options options_;
   CorrectionCallback on_correction_;
