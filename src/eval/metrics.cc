@@ -55,8 +55,11 @@ std::string ToString(RpeUnit unit) { return unit == RpeUnit::kMeters ? "m" : "fr
 void RpeOptions::Check() const {
   SL_CHECK_MSG(std::isfinite(delta) && delta > 0.0, "RPE delta must be > 0, got {}", delta);
   if (unit == RpeUnit::kFrames) {
-    SL_CHECK_MSG(delta >= 1.0 && std::floor(delta) == delta,
-                 "RPE delta in frames must be an integer >= 1, got {}", delta);
+    // Bounded before any pair is formed: 1e20 frames overflowed size_t (an endless loop, or
+    // std::bad_alloc at 2^64).
+    SL_CHECK_MSG(delta >= 1.0 && delta <= kMaxRpeDeltaFrames && std::floor(delta) == delta,
+                 "RPE delta in frames must be an integer from 1 to {:g}, got {}",
+                 kMaxRpeDeltaFrames, delta);
   } else {
     SL_CHECK_MSG(!all_pairs, "RPE all_pairs is only supported for a delta in frames");
   }
@@ -70,9 +73,9 @@ std::vector<std::pair<size_t, size_t>> RpePairs(const std::vector<Rigid3d>& gt,
   if (options.unit == RpeUnit::kFrames) {
     const size_t delta = static_cast<size_t>(options.delta);
     if (options.all_pairs) {
-      for (size_t i = 0; i + delta < n; ++i) pairs.emplace_back(i, i + delta);
+      for (size_t i = 0; delta < n && i < n - delta; ++i) pairs.emplace_back(i, i + delta);
     } else {
-      for (size_t i = 0; i + delta < n; i += delta) pairs.emplace_back(i, i + delta);
+      for (size_t i = 0; delta < n && i < n - delta; i += delta) pairs.emplace_back(i, i + delta);
     }
     return pairs;
   }

@@ -80,6 +80,11 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
                      "--max-dt must be >= 0 s, got -1");
   ExpectNamesTheFlag({"eval", "--gt", gt, "--est", gt, "--rpe-delta", "-3"},
                      "--rpe-delta must be > 0, got -3");
+  // 1e20 (and 1.9e19) frames overflowed size_t and hung; 2^64 was "failed: std::bad_alloc".
+  for (const char* huge : {"1e20", "1.9e19", "18446744073709551616"}) {
+    ExpectNamesTheFlag({"eval", "--gt", gt, "--est", gt, "--rpe-delta", huge},
+                       "--rpe-delta in frames must be an integer from 1 to 1e+09, got ");
+  }
   ExpectNamesTheFlag({"eval", "--gt", gt, "--est", gt, "--derive-loops", "5,10", "--view-angle",
                       "-3", "--loops", (dir / "loops.csv").string()},
                      "--view-angle must be in (0, 180], got -3");

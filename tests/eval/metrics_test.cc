@@ -52,6 +52,25 @@ std::vector<Rigid3d> StraightLine(size_t n) {
   return poses;
 }
 
+// A delta in frames of 1e20 overflowed size_t (an endless loop); 2^64 was std::bad_alloc. The
+// delta is bounded (kMaxRpeDeltaFrames), and a delta past the trajectory gives no pair.
+TEST(Rpe, HugeDeltaInFramesIsRefusedAndOneBeyondTheTrajectoryGivesNoPair) {
+  const std::vector<Rigid3d> line = StraightLine(40);
+  for (const double huge : {1e20, 1.9e19, 18446744073709551616.0, 1e9 + 1}) {
+    RpeOptions o;
+    o.delta = huge;
+    EXPECT_THROW(RpePairs(line, o), std::invalid_argument) << huge;
+  }
+  for (const bool all_pairs : {false, true}) {
+    RpeOptions o;
+    o.delta = kMaxRpeDeltaFrames;
+    o.all_pairs = all_pairs;
+    EXPECT_TRUE(RpePairs(line, o).empty());
+    o.delta = 39;
+    EXPECT_EQ(RpePairs(line, o).size(), 1u);
+  }
+}
+
 TEST(Rpe, ScaledTranslationKnownAnswers) {
   const auto gt = StraightLine(10);
   auto est = gt;

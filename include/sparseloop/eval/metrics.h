@@ -65,8 +65,12 @@ Rigid3d ApplyAlignment(const Sim3d& gt_from_est, const Rigid3d& est_world_from_c
 enum class RpeUnit { kFrames, kMeters };
 std::string ToString(RpeUnit unit);
 
+// Largest RPE delta in frames (no trajectory is longer; a larger delta gives no pair anyway).
+inline constexpr double kMaxRpeDeltaFrames = 1e9;
+
 struct RpeOptions {
-  double delta = 1.0;               // frames (integer >= 1) or metres (> 0) between pair members
+  // Frames (integer in [1, kMaxRpeDeltaFrames]) or metres (> 0) between pair members.
+  double delta = 1.0;
   RpeUnit unit = RpeUnit::kFrames;  // unit of delta
   bool all_pairs = false;           // kFrames only: every (i, i + delta) instead of consecutive ids
   void Check() const;
