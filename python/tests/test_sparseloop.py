@@ -334,3 +334,12 @@ def test_an_odometry_covariance_too_small_to_invert_is_refused():
             closing.add_keyframe(**blank(1, pose=np.eye(4)), odometry_covariance=np.eye(6) * tiny)
     closing.add_keyframe(**blank(1, pose=np.eye(4)), odometry_covariance=np.eye(6) * 1e-4)
     closing.finish()
+
+
+def test_a_deeply_nested_config_file_is_refused_before_parsing(tmp_path):
+    """200000 levels of {"a": ...} took the parser > 30 s: more than 64 is a FileError naming the
+    file, the line and the column."""
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"x": ' + '{"a":' * 200000 + "1" + "}" * 200001)
+    with pytest.raises(sparseloop.FileError, match=r"deep\.json:1: expected JSON nested at most 64 deep"):
+        sparseloop.LoopClosing(config=str(deep), optimize=False)

@@ -534,6 +534,7 @@ void ApplyConfigOverride(const std::string& key, const std::string& value,
         "lists them)",
         key, close.empty() ? "" : fmt::format(" such as {}", fmt::join(close, ", "))));
   }
+  CheckJsonNesting(value, key, false);
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(value);
@@ -635,6 +636,34 @@ nlohmann::json ParseWithoutDuplicateKeys(const std::string& text, const std::str
 
 }  // namespace
 
+void CheckJsonNesting(const std::string& text, const std::string& source, bool source_is_file) {
+  int depth = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\') {
+        ++i;  // the escaped character
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '{' || c == '[') {
+      if (++depth > kMaxConfigJsonDepth) {
+        const std::string expected = fmt::format("JSON nested at most {} deep at column {}",
+                                                 kMaxConfigJsonDepth, ColumnAt(text, i));
+        const std::string got = fmt::format("a level {} deep", depth);
+        if (source_is_file) throw FileError(source, LineAt(text, i), expected, got);
+        throw std::invalid_argument(fmt::format("{}: line {}: expected {}, got {}", source,
+                                                LineAt(text, i), expected, got));
+      }
+    } else if (c == '}' || c == ']') {
+      depth = std::max(depth - 1, 0);  // unbalanced text is the parser's error
+    }
+  }
+}
+
 void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
@@ -648,6 +677,7 @@ void LoadConfigFile(const std::filesystem::path& path, PipelineOptions* options)
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string text = ss.str();
+  CheckJsonNesting(text, path.string(), true);
   nlohmann::json j;
   try {
     j = ParseWithoutDuplicateKeys(text, path.string());

@@ -91,6 +91,7 @@ PipelineOptions PipelineOptionsFrom(const NodeParams& params) {
   }
   if (!params.config_file.empty()) LoadConfigFile(params.config_file, &p);
   if (!params.config_json.empty()) {
+    CheckJsonNesting(params.config_json, "~config", false);
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(params.config_json);

@@ -3,6 +3,7 @@
 #include "sparseloop/core/error.h"
 
 #include <algorithm>
+#include <chrono>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -249,6 +250,53 @@ TEST(Config, NumberOverflowIsAFileError) {
     EXPECT_EQ(e.file(), path.string());
     EXPECT_NE(std::string(e.what()).find("overflow"), std::string::npos) << e.what();
   }
+}
+
+// A 1.2 MB configuration {"x": {"a":{"a":...}}} 200000 deep ran > 30 s (memory quadratic in the
+// depth): nesting deeper than kMaxConfigJsonDepth is refused before parsing, with our line and
+// column; brackets inside strings do not count.
+TEST(Config, DeepNestingIsRefusedBeforeParsing) {
+  const auto path = test::TempDir() / "deep.json";
+  {
+    std::ofstream out(path);
+    out << "{\n\"x\": ";
+    for (int i = 0; i < 200000; ++i) out << "{\"a\":";
+    out << "1";
+    for (int i = 0; i < 200000; ++i) out << "}";
+    out << "}\n";
+  }
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    PipelineOptions o;
+    LoadConfigFile(path, &o);
+    ADD_FAILURE() << "no throw";
+  } catch (const FileError& e) {
+    EXPECT_EQ(e.line(), 2) << e.what();
+    // The 65th level: "x"'s object opens at column 6, each "a" adds 5 columns.
+    EXPECT_NE(std::string(e.what()).find(":2: expected JSON nested at most 64 deep at column " +
+                                         std::to_string(6 + 5 * 63) + ", got a level 65 deep"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+  // 64 levels parse (and fail on the unknown key); brackets inside a string are text.
+  const auto ok = test::TempDir() / "deep64.json";
+  {
+    std::ofstream out(ok);
+    for (int i = 0; i < 64; ++i) out << "{\"a\\\"[{\":";
+    out << "1";
+    for (int i = 0; i < 64; ++i) out << "}";
+  }
+  try {
+    PipelineOptions o;
+    LoadConfigFile(ok, &o);
+    ADD_FAILURE() << "no throw";
+  } catch (const std::exception& e) {
+    EXPECT_EQ(std::string(e.what()).find("nested"), std::string::npos) << e.what();
+  }
+  PipelineOptions o;
+  EXPECT_THROW(ApplyConfigOverride("detector.check_every", std::string(65, '[') + "1", &o),
+               std::invalid_argument);
 }
 
 // A value of `key` other than its default that the options' Check() accepts.

@@ -289,6 +289,22 @@ TEST(NodeCore, BadParametersAndConfigKeysThrowNamingThem) {
   EXPECT_NE(message(p).find("~config must be a dictionary"), std::string::npos) << message(p);
   p.config_json = "{";
   EXPECT_NE(message(p).find("~config is not a JSON object"), std::string::npos) << message(p);
+  // Nesting deeper than 64 levels is refused before parsing (200000 levels ran > 30 s), in ~config
+  // and in ~config_file.
+  p.config_json = std::string(100000, '[') + std::string(100000, ']');
+  EXPECT_NE(message(p).find("~config: line 1: expected JSON nested at most 64 deep at column 65"),
+            std::string::npos)
+      << message(p);
+  p.config_json.clear();
+  {
+    const auto deep = std::filesystem::temp_directory_path() / "sparseloop_node_core_deep.json";
+    std::ofstream(deep) << std::string(100000, '{');
+    p.config_file = deep.string();
+    EXPECT_NE(message(p).find(deep.string() + ":1: expected JSON nested at most 64 deep"),
+              std::string::npos)
+        << message(p);
+    p.config_file.clear();
+  }
   p = NodeParams{};
   p.preset = "tiny";
   EXPECT_NE(message(p).find("~preset tiny: expected a preset name (dense | sparse)"),
