@@ -343,3 +343,12 @@ def test_a_deeply_nested_config_file_is_refused_before_parsing(tmp_path):
     deep.write_text('{"x": ' + '{"a":' * 200000 + "1" + "}" * 200001)
     with pytest.raises(sparseloop.FileError, match=r"deep\.json:1: expected JSON nested at most 64 deep"):
         sparseloop.LoopClosing(config=str(deep), optimize=False)
+
+
+def test_read_mapped_pixels_refuses_a_depth_beyond_float(tmp_path):
+    """1e39 (or 1e308) read as inf: a FileError naming the file and the line."""
+    for big in ("1e39", "1e308"):
+        path = tmp_path / "000000.txt"
+        path.write_text(f"1 2 3\n4 5 {big}\n")
+        with pytest.raises(sparseloop.FileError, match=r"000000\.txt:2: expected a depth within float range"):
+            sparseloop.read_mapped_pixels(str(path))

@@ -1,11 +1,33 @@
 #include "sparseloop/io/mapped_pixels.h"
 
+#include <cmath>
+#include <limits>
+#include <string>
+#include <string_view>
+
 #include <fmt/format.h>
 
 #include "io/text_parsing.h"
 #include "sparseloop/core/error.h"
 
 namespace sparseloop {
+namespace {
+
+// A finite number that stays finite as a float (the type the detector takes): 1e39 became inf and
+// failed later, as the keyframe's input, without the file or the line.
+float ParseFiniteFloat(std::string_view token, const std::string& file, int line,
+                       std::string_view what) {
+  const double d = io_internal::ParseDouble(token, file, line, what);
+  if (std::abs(d) > static_cast<double>(std::numeric_limits<float>::max())) {
+    throw FileError(file, line,
+                    fmt::format("a {} within float range (|x| <= {:g})", what,
+                                static_cast<double>(std::numeric_limits<float>::max())),
+                    std::string(token));
+  }
+  return static_cast<float>(d);
+}
+
+}  // namespace
 
 std::vector<MappedPixelRow> ReadMappedPixelRows(const std::filesystem::path& path) {
   const io_internal::TextFile file(path);
@@ -18,9 +40,9 @@ std::vector<MappedPixelRow> ReadMappedPixelRows(const std::filesystem::path& pat
                       fmt::format("{} columns", t.size()));
     }
     MappedPixelRow row;
-    row.u = static_cast<float>(io_internal::ParseDouble(t[0], name, line.number, "u"));
-    row.v = static_cast<float>(io_internal::ParseDouble(t[1], name, line.number, "v"));
-    row.depth = static_cast<float>(io_internal::ParseDouble(t[2], name, line.number, "depth"));
+    row.u = ParseFiniteFloat(t[0], name, line.number, "u");
+    row.v = ParseFiniteFloat(t[1], name, line.number, "v");
+    row.depth = ParseFiniteFloat(t[2], name, line.number, "depth");
     out.push_back(row);
   }
   return out;

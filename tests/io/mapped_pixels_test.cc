@@ -47,6 +47,14 @@ TEST(MappedPixelRows, NamesTheLineOfAMalformedRow) {
   expect_error("1 2 3 4\n", 1, "4 columns");
   expect_error("# c\n1 2 nan\n", 2, "depth");
   expect_error("1 x 3\n", 1, "for v");
+  // Finite as a double, inf as a float: the run failed later on "mapped_depths[0] ... got inf"
+  // without the file or the line.
+  expect_error("1 2 3\n1 2 1e39\n", 2,
+               "expected a depth within float range (|x| <= 3.40282e+38), got 1e39");
+  expect_error("1 2 3\n1 2 1e308\n", 2, "depth within float range");
+  expect_error("-1e300 2 3\n", 1, "u within float range");
+  EXPECT_FLOAT_EQ(ReadMappedPixelRows(test::WriteText(dir / "big.txt", "1 2 3e38\n"))[0].depth,
+                  3e38f);
   EXPECT_THROW(ReadMappedPixelRows(dir / "missing.txt"), FileError);
 }
 
