@@ -1,5 +1,6 @@
 // sparseloop optimize: read a g2o / TORO pose graph, optimise it, print a Ceres-style brief
 // report and write the optimised graph (g2o, atomically).
+#include <cmath>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -75,6 +76,11 @@ int RunOptimize(int argc, char** argv) {
   }
   options.log_progress = !quiet;
   const PoseGraphSummary summary = graph.Optimize(options);
+  if (summary.status == PoseGraphStatus::kFailed || !std::isfinite(summary.final_cost)) {
+    std::cerr << fmt::format("optimize: the solve failed ({}; final cost {}): {} not written\n",
+                             summary.ceres_message, summary.final_cost, out);
+    return 1;
+  }
   WriteFileAtomically(out, [&](std::ostream& os) { WriteG2o(os, graph); });
 
   std::cout << fmt::format(
@@ -95,7 +101,7 @@ int RunOptimize(int argc, char** argv) {
       summary.num_edges, robust, summary.initial_cost, summary.final_cost,
       summary.initial_cost - summary.final_cost, summary.iterations, summary.solve_seconds,
       ToString(summary.status), summary.ceres_message, out);
-  return summary.status == PoseGraphStatus::kFailed ? 1 : 0;
+  return 0;
 }
 
 SPARSELOOP_REGISTER_COMMAND("optimize", "optimise a g2o pose graph and write the result",

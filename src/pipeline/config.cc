@@ -294,7 +294,7 @@ void AddOptimizerKeys(KeyList& k) {
       p + "edge_loss", SL_FIELD(optimizer.edge_loss), losses,
       [](RobustLoss l) { return ToString(l); }, "robust loss on odometry edges");
   k.Add(p + "loss_scale", SL_FIELD(optimizer.loss_scale), "sigmas",
-        "whitened residual where the robust loss bends");
+        "whitened residual where the robust loss bends ([1e-6, 1e6])");
   k.AddEnum(
       p + "rejection", SL_FIELD(optimizer.rejection),
       {OutlierRejection::kNone, OutlierRejection::kPcm},

@@ -216,7 +216,10 @@ void PoseGraphOptions::Check() const {
   SL_CHECK_MSG(function_tolerance > 0, "function_tolerance must be > 0");
   SL_CHECK_MSG(gradient_tolerance > 0, "gradient_tolerance must be > 0");
   SL_CHECK_MSG(parameter_tolerance > 0, "parameter_tolerance must be > 0");
-  SL_CHECK_MSG(loss_scale > 0, "loss_scale must be > 0, got {}", loss_scale);
+  // Bounded: Ceres squares it (1e-160 -> 0), and the Cauchy loss then gave a NaN cost reported as
+  // converged.
+  SL_CHECK_MSG(loss_scale >= 1e-6 && loss_scale <= 1e6,
+               "loss_scale must be in [1e-6, 1e6] sigmas, got {}", loss_scale);
   SL_CHECK_MSG(initial_trust_region_radius > 0, "initial_trust_region_radius must be > 0, got {}",
                initial_trust_region_radius);
   SL_CHECK_MSG(num_threads >= 1, "num_threads must be >= 1, got {}", num_threads);
@@ -616,6 +619,12 @@ void PoseGraph::SolveOnce(const PoseGraphOptions& options, const std::vector<boo
   summary.iterations = static_cast<int>(ceres_summary.iterations.size()) - 1;
   summary.ceres_message = ceres_summary.message;
   summary.status = StatusOf(ceres_summary, interrupt_callback.interrupted());
+  // A NaN or infinite cost is no solution, whatever Ceres' termination says (a loss scale of
+  // 1e-308 "converged" with cost -nan).
+  if (summary.status != PoseGraphStatus::kFailed && !std::isfinite(ceres_summary.final_cost)) {
+    summary.status = PoseGraphStatus::kFailed;
+    summary.ceres_message = fmt::format("the cost is not finite ({})", ceres_summary.final_cost);
+  }
   if (summary.status == PoseGraphStatus::kFailed) {
     params_ = backup;
     Logger().warn("pose graph solve failed: {}", ceres_summary.message);

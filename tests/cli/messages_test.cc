@@ -75,7 +75,11 @@ TEST(CliMessages, OptionErrorsNameTheFlagNeverASourcePath) {
                          ": expected an executable Python interpreter, got no such file");
   ExpectNamesTheFlag({"optimize", "--g2o", (dir / "g.g2o").string(), "--out",
                       (dir / "o.g2o").string(), "--loss-scale", "-1"},
-                     "--loss-scale must be > 0, got -1");
+                     "--loss-scale must be in [1e-6, 1e6] sigmas, got -1");
+  // 1e-308 (anything <= 1e-160: Ceres squares it) "converged" with cost -nan, exit 0.
+  ExpectNamesTheFlag({"optimize", "--g2o", (dir / "g.g2o").string(), "--out",
+                      (dir / "o.g2o").string(), "--robust", "cauchy", "--loss-scale", "1e-308"},
+                     "--loss-scale must be in [1e-6, 1e6] sigmas, got 1e-308");
   ExpectNamesTheFlag({"eval", "--gt", gt, "--est", gt, "--max-dt", "-1"},
                      "--max-dt must be >= 0 s, got -1");
   ExpectNamesTheFlag({"eval", "--gt", gt, "--est", gt, "--rpe-delta", "-3"},

@@ -77,6 +77,20 @@ TEST(CliOptimize, BadInputExitsTwoWithLine) {
       << robust.err;
 }
 
+// A solve without a finite cost (here an information of 1e300: the cost overflows) is a failure:
+// exit 1 saying so, and --out is not written (a NaN cost was reported as converged, exit 0).
+TEST(CliOptimize, ASolveWithoutAFiniteCostExits1AndWritesNothing) {
+  const auto dir = TempDir();
+  std::ofstream(dir / "huge.g2o") << "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1e10 0 0\n"
+                                     "EDGE_SE2 0 1 1 0 0 1e300 0 0 1e300 0 1e300\n";
+  const CliResult r = RunCli(
+      {"optimize", "--g2o", (dir / "huge.g2o").string(), "--out", (dir / "out.g2o").string()});
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("optimize: the solve failed"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("not written"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out.g2o"));
+}
+
 TEST(CliOptimize, ParkingGarage) {
   SL_REQUIRE_DATA("pose_graphs/parking-garage.g2o");
   const auto dir = TempDir();
